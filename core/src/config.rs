@@ -1,0 +1,119 @@
+//! Every capacity and tunable of the core, in one place.
+//!
+//! Capacities are compile-time constants because they size fixed arrays (`heapless::Vec<T, N>`,
+//! `[T; N]`): nothing in the core grows at run time. Tunables are run-time values with defaults, so a
+//! user can adjust thresholds without a rebuild. The two [`Profile`]s say at which resolution the
+//! pipeline runs: [`QVGA`] on the reference board (Cortex-M7F, 1 MB SRAM), [`VGA`] on the host.
+
+/// Capacities that size the core's fixed arrays. Changing one changes RAM use: see
+/// `memory-budget.md`, which CI checks.
+pub mod capacity {
+    /// Widest image the core accepts, in pixels (the sensor's VGA width).
+    pub const MAX_WIDTH: usize = 640;
+    /// Tallest image the core accepts, in pixels (the sensor's VGA height).
+    pub const MAX_HEIGHT: usize = 480;
+    /// Features kept per frame after grid bucketing.
+    pub const MAX_FEATURES_PER_FRAME: usize = 512;
+    /// Keyframes held in the map arena at once (older segments are retired to a compact form).
+    pub const MAX_KEYFRAMES: usize = 256;
+    /// Landmarks held in the map arena at once.
+    pub const MAX_LANDMARKS: usize = 8192;
+    /// Hard cap on the local bundle-adjustment window, in keyframes (the paper's 50-65 average).
+    pub const LOCAL_WINDOW_MAX: usize = 65;
+    /// Keyframes per segment of the segmented global bundle adjustment.
+    pub const SEGMENT_MAX_KEYFRAMES: usize = 16;
+    /// Segments held at once.
+    pub const MAX_SEGMENTS: usize = MAX_KEYFRAMES / 4;
+}
+
+/// The resolution the pipeline runs at, derived from the sensor's VGA frames by 2x downsampling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Profile {
+    /// Short name used in reports (`"qvga"`, `"vga"`).
+    pub name: &'static str,
+    /// How many times the sensor frame is halved before processing (0 = full resolution).
+    pub downsample_levels: u8,
+}
+
+impl Profile {
+    /// The processing width for a sensor frame `sensor_width` pixels wide.
+    pub const fn width(&self, sensor_width: usize) -> usize {
+        sensor_width >> self.downsample_levels
+    }
+
+    /// The processing height for a sensor frame `sensor_height` pixels tall.
+    pub const fn height(&self, sensor_height: usize) -> usize {
+        sensor_height >> self.downsample_levels
+    }
+}
+
+/// The reference board's profile: 640x480 sensor frames halved once to 320x240.
+pub const QVGA: Profile = Profile { name: "qvga", downsample_levels: 1 };
+
+/// The full-resolution profile for hosts with memory to spare.
+pub const VGA: Profile = Profile { name: "vga", downsample_levels: 0 };
+
+/// A gray frame buffer at the QVGA profile (320x240), owned by whoever holds the frame.
+pub type QvgaGrayBuffer = [u8; (capacity::MAX_WIDTH / 2) * (capacity::MAX_HEIGHT / 2)];
+/// A raw depth frame buffer at the QVGA profile (320x240).
+pub type QvgaDepthBuffer = [u16; (capacity::MAX_WIDTH / 2) * (capacity::MAX_HEIGHT / 2)];
+/// A gray frame buffer at the VGA profile (640x480).
+pub type VgaGrayBuffer = [u8; capacity::MAX_WIDTH * capacity::MAX_HEIGHT];
+/// A raw depth frame buffer at the VGA profile (640x480).
+pub type VgaDepthBuffer = [u16; capacity::MAX_WIDTH * capacity::MAX_HEIGHT];
+
+/// Run-time thresholds of the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tunables {
+    /// Depth readings nearer than this are discarded, in metres (Kinect-class sensors read ~0.4 m).
+    pub depth_min_m: f32,
+    /// Depth readings farther than this are discarded, in metres (structured-light noise grows with
+    /// the square of depth; beyond ~4 m it dominates).
+    pub depth_max_m: f32,
+    /// Maximum timestamp difference when associating colour, depth and ground truth, in seconds
+    /// (the TUM benchmark's and evo's 0.02 s).
+    pub association_max_dt_s: f64,
+}
+
+impl Default for Tunables {
+    fn default() -> Self {
+        Self { depth_min_m: 0.3, depth_max_m: 4.0, association_max_dt_s: 0.02 }
+    }
+}
+
+/// A complete configuration: the profile and the tunables.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Config {
+    /// The processing resolution.
+    pub profile: Profile,
+    /// Run-time thresholds.
+    pub tunables: Tunables,
+}
+
+impl Default for Config {
+    /// The reference board's configuration: [`QVGA`] with default tunables.
+    fn default() -> Self {
+        Self { profile: QVGA, tunables: Tunables::default() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn profiles_halve_the_sensor_frame() {
+        assert_eq!((QVGA.width(640), QVGA.height(480)), (320, 240));
+        assert_eq!((VGA.width(640), VGA.height(480)), (640, 480));
+        assert_eq!(core::mem::size_of::<QvgaGrayBuffer>(), 320 * 240);
+    }
+
+    #[test]
+    fn default_tunables_are_ordered() {
+        let t = Tunables::default();
+        assert!(t.depth_min_m > 0.0 && t.depth_min_m < t.depth_max_m);
+    }
+}

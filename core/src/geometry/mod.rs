@@ -1,0 +1,1 @@
+//! Geometry: SE(3), the pinhole camera, alignment. (Being written.)

@@ -1,0 +1,24 @@
+//! ferroslam-core: the no_std, no-heap, deterministic RGB-D SLAM core.
+//!
+//! Layers, bottom up (see `shared/design.md` for the full map):
+//!
+//! - [`config`]: every capacity and tunable in one place, with the QVGA (reference board) and VGA
+//!   profiles.
+//! - [`geometry`]: SE(3) poses on [`nalgebra::Isometry3<f32>`], exp/log, the pinhole camera of the
+//!   paper's Eq. 1-2 with Jacobians, depth back-projection, Horn/Umeyama alignment.
+//! - [`image`]: borrowed image views with stride, 2x downsampling, the image variation `v_m` and the
+//!   total variation `W(I)` of the paper's Eq. 3.
+//! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
+//!   recorded datasets and the synthetic renderer implement.
+//!
+//! Rules: no heap (every capacity is in a type), no `unsafe`, no panics on bad input (errors are
+//! values), f32 arithmetic with transcendental functions through the pure-Rust `libm` on every target
+//! so the host and the Cortex-M give the same bits; time and ids are inputs, never read from a clock.
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod config;
+pub mod frame;
+pub mod geometry;
+pub mod image;

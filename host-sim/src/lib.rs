@@ -1,0 +1,20 @@
+//! ferroslam-sim: the host side of ferroslam.
+//!
+//! It feeds recorded or synthetic RGB-D frames through `ferroslam-core` exactly as the firmware
+//! does (through the core's [`ferroslam_core::frame::FrameSource`] port, never a side entrance), and
+//! evaluates what comes out:
+//!
+//! - [`dataset`]: TUM RGB-D folders (lists, association, calibration, image decoding on a
+//!   read-ahead thread);
+//! - [`synth`]: a built-in synthetic RGB-D sequence with exact ground truth, rendered in code;
+//! - [`trajectory`]: TUM trajectory files;
+//! - [`eval`]: ATE and RPE as evo computes them;
+//! - [`plot`]: trajectory and error plots;
+//! - [`commands`]: the CLI's subcommands.
+
+pub mod commands;
+pub mod dataset;
+pub mod eval;
+pub mod plot;
+pub mod synth;
+pub mod trajectory;

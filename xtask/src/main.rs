@@ -1,0 +1,2 @@
+//! `cargo xtask`: the project's automation (being written).
+fn main() {}
