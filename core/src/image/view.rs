@@ -44,11 +44,9 @@ impl fmt::Display for ImageError {
             Self::BufferTooSmall { needed, got } => {
                 write!(f, "image buffer holds {got} elements, {needed} needed")
             }
-            Self::SizeMismatch { expected, got } => write!(
-                f,
-                "image is {}x{}, expected {}x{}",
-                got.0, got.1, expected.0, expected.1
-            ),
+            Self::SizeMismatch { expected, got } => {
+                write!(f, "image is {}x{}, expected {}x{}", got.0, got.1, expected.0, expected.1)
+            }
             Self::InvalidDepthScale => write!(f, "depth scale must be finite and positive"),
         }
     }
@@ -92,7 +90,12 @@ impl<'a, P: Copy> ImageView<'a, P> {
     /// # Errors
     /// [`ImageError::ZeroSize`], [`ImageError::StrideTooSmall`] or [`ImageError::BufferTooSmall`]
     /// when the layout does not fit `data`.
-    pub fn new(data: &'a [P], width: usize, height: usize, stride: usize) -> Result<Self, ImageError> {
+    pub fn new(
+        data: &'a [P],
+        width: usize,
+        height: usize,
+        stride: usize,
+    ) -> Result<Self, ImageError> {
         check_layout(data.len(), width, height, stride)?;
         Ok(Self { data, width, height, stride })
     }
