@@ -1,2 +1,31 @@
-//! `cargo xtask`: the project's automation (being written).
-fn main() {}
+//! `cargo xtask`: the project's automation. `cargo xtask ci` is the one command that runs every
+//! check CI runs (the README's test command).
+//!
+//! Subcommands:
+//! - `ci`: formatting, clippy (host and thumb), docs, host tests, the no-allocator thumb build of core
+//!   and firmware, the QEMU run of the firmware checked bit for bit against the host, and replays of
+//!   the real and synthetic data through the host simulator.
+//! - `firmware-wi [DATASET]`: only the QEMU check (frame 0 of DATASET, default 7-Scenes).
+
+mod ci;
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("ci") => ci::run_all(),
+        Some("firmware-wi") => ci::firmware_wi(args.get(1).map(String::as_str)),
+        _ => {
+            eprintln!("usage: cargo xtask <ci | firmware-wi [DATASET]>");
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
