@@ -1,0 +1,256 @@
+//! Pinhole intrinsics and depth scale: `calibration.toml` or a TUM preset.
+
+use std::path::Path;
+
+use super::DatasetError;
+use super::lists::read_text;
+
+/// Pinhole intrinsics of the (colour) camera and the depth scale, for images of `width` x `height`.
+///
+/// Pixel coordinates have their origin at the centre of the top-left pixel, x to the right, y
+/// downwards (the convention of the TUM and 7-Scenes calibrations and of the core's image views).
+/// No lens distortion is modelled: distortion coefficients in a file are ignored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Focal length along x, in pixels.
+    pub fx: f32,
+    /// Focal length along y, in pixels.
+    pub fy: f32,
+    /// Principal point x, in pixels.
+    pub cx: f32,
+    /// Principal point y, in pixels.
+    pub cy: f32,
+    /// Image width, in pixels.
+    pub width: u32,
+    /// Image height, in pixels.
+    pub height: u32,
+    /// Raw depth units per metre (`raw / depth_scale` = depth in metres along the optical axis).
+    pub depth_scale: f32,
+}
+
+/// The float keys of `calibration.toml`, in the order they are checked.
+const FLOAT_KEYS: [&str; 5] = ["fx", "fy", "cx", "cy", "depth_scale"];
+
+impl Calibration {
+    /// Reads and validates a `calibration.toml` with the keys `fx`, `fy`, `cx`, `cy`,
+    /// `depth_scale` (numbers) and `width`, `height` (integers). Other keys are ignored.
+    ///
+    /// # Errors
+    /// [`DatasetError::Io`] when the file cannot be read; [`DatasetError::CalibrationSyntax`],
+    /// [`DatasetError::CalibrationMissingKey`] or [`DatasetError::CalibrationValue`] naming the file
+    /// and the key when it is not valid TOML, a key is missing, or a value is of the wrong type,
+    /// NaN, infinite, zero or negative, or the principal point lies outside the image.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
+        let path = path.as_ref();
+        Self::from_toml_str(&read_text(path)?, path)
+    }
+
+    /// Parses and validates the text of a calibration file; `path` is only used in errors.
+    ///
+    /// # Errors
+    /// As [`Calibration::load`], without the I/O error.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, DatasetError> {
+        let table: toml::Table =
+            text.parse().map_err(|e: toml::de::Error| DatasetError::CalibrationSyntax {
+                path: path.to_owned(),
+                message: e.to_string().trim_end().to_owned(),
+            })?;
+        let mut floats = [0.0f32; 5];
+        for (slot, key) in floats.iter_mut().zip(FLOAT_KEYS) {
+            *slot = float_key(&table, path, key)?;
+        }
+        let [fx, fy, cx, cy, depth_scale] = floats;
+        let width = int_key(&table, path, "width")?;
+        let height = int_key(&table, path, "height")?;
+        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale };
+        calibration.validate(path)?;
+        Ok(calibration)
+    }
+
+    /// TUM RGB-D's published intrinsics (the ROS defaults) for the Freiburg 1, 2 and 3 sensors,
+    /// `"tum1"`, `"tum2"`, `"tum3"`: 640x480, depth scale 5000 (raw units per metre).
+    ///
+    /// # Errors
+    /// [`DatasetError::UnknownPreset`] for any other name.
+    pub fn preset(name: &str) -> Result<Self, DatasetError> {
+        let (fx, fy, cx, cy) = match name {
+            "tum1" => (517.3, 516.5, 318.6, 255.3),
+            "tum2" => (520.9, 521.0, 325.1, 249.7),
+            "tum3" => (535.4, 539.2, 320.1, 247.6),
+            _ => return Err(DatasetError::UnknownPreset { name: name.to_owned() }),
+        };
+        Ok(Self { fx, fy, cx, cy, width: 640, height: 480, depth_scale: 5000.0 })
+    }
+
+    /// Checks every value: finite and positive, principal point inside the image, size non-zero.
+    ///
+    /// # Errors
+    /// [`DatasetError::CalibrationValue`] naming `origin` (the file the values came from) and the
+    /// first key at fault.
+    pub fn validate(&self, origin: &Path) -> Result<(), DatasetError> {
+        let bad = |key: &'static str, value: String, reason: &'static str| {
+            Err(DatasetError::CalibrationValue { path: origin.to_owned(), key, value, reason })
+        };
+        let values = [self.fx, self.fy, self.cx, self.cy, self.depth_scale];
+        for (key, v) in FLOAT_KEYS.into_iter().zip(values) {
+            if !v.is_finite() {
+                return bad(key, v.to_string(), "must be a finite number");
+            }
+            if v <= 0.0 {
+                return bad(key, v.to_string(), "must be positive");
+            }
+        }
+        for (key, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 {
+                return bad(key, v.to_string(), "must be positive");
+            }
+        }
+        // The principal point of a real camera is near the image centre; one outside the image is
+        // a swapped or mistyped value.
+        if self.cx >= self.width as f32 {
+            return bad("cx", self.cx.to_string(), "lies outside the image width");
+        }
+        if self.cy >= self.height as f32 {
+            return bad("cy", self.cy.to_string(), "lies outside the image height");
+        }
+        Ok(())
+    }
+
+    /// The calibration of the image obtained by halving this one `levels` times with 2x2 block
+    /// averaging: focal lengths halve, and since a block's centre sits between its four pixels,
+    /// `c' = (c + 0.5) / 2 - 0.5` for each principal-point coordinate. Sizes are halved rounding
+    /// down; the depth scale is unchanged.
+    pub fn downsampled(&self, levels: u8) -> Self {
+        let mut c = *self;
+        for _ in 0..levels {
+            c.fx /= 2.0;
+            c.fy /= 2.0;
+            c.cx = (c.cx + 0.5) / 2.0 - 0.5;
+            c.cy = (c.cy + 0.5) / 2.0 - 0.5;
+            c.width /= 2;
+            c.height /= 2;
+        }
+        c
+    }
+}
+
+/// A float key (a TOML float or integer), as `f32`.
+fn float_key(table: &toml::Table, path: &Path, key: &'static str) -> Result<f32, DatasetError> {
+    let value = table
+        .get(key)
+        .ok_or_else(|| DatasetError::CalibrationMissingKey { path: path.to_owned(), key })?;
+    let v = match value {
+        toml::Value::Float(f) => *f,
+        toml::Value::Integer(i) => *i as f64,
+        other => return Err(wrong_type(path, key, other, "must be a number")),
+    };
+    if !v.is_finite() {
+        return Err(wrong_type(path, key, value, "must be a finite number"));
+    }
+    if v <= 0.0 {
+        return Err(wrong_type(path, key, value, "must be positive"));
+    }
+    // Values beyond f32's range would become infinite.
+    let f = v as f32;
+    if !f.is_finite() {
+        return Err(wrong_type(path, key, value, "must be a finite number"));
+    }
+    Ok(f)
+}
+
+/// An integer key, as a positive `u32`.
+fn int_key(table: &toml::Table, path: &Path, key: &'static str) -> Result<u32, DatasetError> {
+    let value = table
+        .get(key)
+        .ok_or_else(|| DatasetError::CalibrationMissingKey { path: path.to_owned(), key })?;
+    let toml::Value::Integer(i) = value else {
+        return Err(wrong_type(path, key, value, "must be an integer number of pixels"));
+    };
+    match u32::try_from(*i) {
+        Ok(v) if v > 0 => Ok(v),
+        _ => Err(wrong_type(path, key, value, "must be a positive integer below 2^32")),
+    }
+}
+
+fn wrong_type(
+    path: &Path,
+    key: &'static str,
+    v: &toml::Value,
+    reason: &'static str,
+) -> DatasetError {
+    DatasetError::CalibrationValue { path: path.to_owned(), key, value: v.to_string(), reason }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "fx = 585.0\nfy = 585\ncx = 320.0\ncy = 240.0\nwidth = 640\nheight = 480\n\
+                        depth_scale = 1000.0\nd0 = 0.1 # distortion, ignored\n";
+
+    #[test]
+    fn a_valid_file_parses() {
+        let c = Calibration::from_toml_str(GOOD, Path::new("calibration.toml")).unwrap();
+        assert_eq!(c.fx, 585.0);
+        assert_eq!(c.fy, 585.0);
+        assert_eq!((c.width, c.height), (640, 480));
+        assert_eq!(c.depth_scale, 1000.0);
+    }
+
+    #[test]
+    fn bad_values_name_the_file_and_key() {
+        let path = Path::new("x/calibration.toml");
+        let cases = [
+            ("fx = 585.0", "fx = nan", "fx"),
+            ("fy = 585", "fy = inf", "fy"),
+            ("cx = 320.0", "cx = 0.0", "cx"),
+            ("cy = 240.0", "cy = -240.0", "cy"),
+            ("depth_scale = 1000.0", "depth_scale = -inf", "depth_scale"),
+            ("width = 640", "width = 0", "width"),
+            ("height = 480", "height = -480", "height"),
+            ("height = 480", "height = 480.0", "height"),
+            ("fx = 585.0", "fx = \"585\"", "fx"),
+            ("cx = 320.0", "cx = 700.0", "cx"),
+            ("fx = 585.0", "fx = 1e300", "fx"),
+        ];
+        for (from, to, key) in cases {
+            let text = GOOD.replace(from, to);
+            let err = Calibration::from_toml_str(&text, path).unwrap_err();
+            let msg = err.to_string();
+            assert!(
+                matches!(&err, DatasetError::CalibrationValue { key: k, .. } if *k == key),
+                "{to}: {msg}"
+            );
+            assert!(msg.starts_with("x/calibration.toml: key '"), "{msg}");
+        }
+        let err = Calibration::from_toml_str(&GOOD.replace("fy = 585\n", ""), path).unwrap_err();
+        assert_eq!(err.to_string(), "x/calibration.toml: missing key 'fy'");
+        let err = Calibration::from_toml_str("fx = = 1", path).unwrap_err();
+        assert!(matches!(err, DatasetError::CalibrationSyntax { .. }), "{err}");
+    }
+
+    #[test]
+    fn presets_are_tum_ros_defaults() {
+        let c = Calibration::preset("tum3").unwrap();
+        assert_eq!((c.fx, c.fy, c.cx, c.cy), (535.4, 539.2, 320.1, 247.6));
+        assert_eq!((c.width, c.height, c.depth_scale), (640, 480, 5000.0));
+        assert!(Calibration::preset("tum1").unwrap().validate(Path::new("p")).is_ok());
+        assert!(Calibration::preset("tum2").unwrap().validate(Path::new("p")).is_ok());
+        let err = Calibration::preset("fr4").unwrap_err();
+        assert!(err.to_string().contains("\"fr4\""), "{err}");
+    }
+
+    #[test]
+    fn downsampling_keeps_pixel_centres() {
+        let c = Calibration::preset("tum1").unwrap();
+        assert_eq!(c.downsampled(0), c);
+        let h = c.downsampled(1);
+        assert_eq!((h.fx, h.fy, h.width, h.height), (258.65, 258.25, 320, 240));
+        assert_eq!(h.cx, (318.6 + 0.5) / 2.0 - 0.5);
+        assert_eq!(h.cy, (255.3 + 0.5) / 2.0 - 0.5);
+        // A principal point at the exact image centre stays at the centre.
+        let centred = Calibration { cx: 319.5, cy: 239.5, ..c }.downsampled(2);
+        assert_eq!((centred.cx, centred.cy), (79.5, 59.5));
+        assert_eq!(h.depth_scale, c.depth_scale);
+    }
+}

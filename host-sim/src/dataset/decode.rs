@@ -1,0 +1,232 @@
+//! Image decoding (colour to 8-bit gray, 16-bit depth), 2x downsampling, and the owned frame.
+//!
+//! Gray conversion uses ITU-R BT.601 luma in OpenCV's fixed point,
+//! `Y = (4899 R + 9617 G + 1868 B + 8192) >> 14` (OpenCV's `COLOR_RGB2GRAY`, which the TUM tools and
+//! most SLAM systems use on these recordings), bit-exact and independent of the image crate's own
+//! conversion. Alpha is dropped (not composited). 16-bit samples are reduced to 8 bits by
+//! `(v * 255 + 32767) / 65535` (rounding to nearest) after the luma sum. The file format is found
+//! from the content, not the extension.
+
+use std::path::Path;
+
+use ferroslam_core::frame::RgbdFrame;
+use ferroslam_core::image::{
+    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, downsample_depth_2x,
+    downsample_gray_2x,
+};
+use image::{DynamicImage, ImageFormat, ImageReader};
+
+use super::DatasetError;
+
+/// A decoded RGB-D frame that owns its pixels, at the processing profile's resolution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnedFrame {
+    /// Capture time in seconds: the colour image's timestamp on the recording's clock.
+    pub timestamp_s: f64,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// 8-bit gray, row-major, `width * height` samples.
+    pub gray: Vec<u8>,
+    /// Raw depth, row-major, `width * height` samples; 0 means no reading.
+    pub depth: Vec<u16>,
+    /// Raw depth units per metre.
+    pub depth_scale: f32,
+}
+
+impl OwnedFrame {
+    /// The frame as the core's borrowed [`RgbdFrame`].
+    ///
+    /// # Errors
+    /// An [`ImageError`] when the buffers do not hold `width * height` samples or the depth scale is
+    /// not finite and positive (never for a frame from [`super::Dataset::load_frame`]).
+    pub fn view(&self) -> Result<RgbdFrame<'_>, ImageError> {
+        let gray = GrayView::packed(&self.gray, self.width, self.height)?;
+        let raw = ImageView::packed(&self.depth, self.width, self.height)?;
+        let depth = DepthView::new(raw, self.depth_scale)?;
+        Ok(RgbdFrame { timestamp_s: self.timestamp_s, gray, depth })
+    }
+}
+
+/// Opens and decodes an image, recognising its format from its content.
+fn decode(path: &Path) -> Result<(DynamicImage, Option<ImageFormat>), DatasetError> {
+    let io = |source| DatasetError::Io { path: path.to_owned(), source };
+    let reader = ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)?;
+    let format = reader.format();
+    let image =
+        reader.decode().map_err(|source| DatasetError::Decode { path: path.to_owned(), source })?;
+    Ok((image, format))
+}
+
+/// `8-bit RGB JPEG`-style description of a decoded image, for error messages.
+fn describe(image: &DynamicImage, format: Option<ImageFormat>) -> String {
+    let color = match image {
+        DynamicImage::ImageLuma8(_) => "8-bit gray",
+        DynamicImage::ImageLumaA8(_) => "8-bit gray+alpha",
+        DynamicImage::ImageRgb8(_) => "8-bit RGB",
+        DynamicImage::ImageRgba8(_) => "8-bit RGBA",
+        DynamicImage::ImageLuma16(_) => "16-bit gray",
+        DynamicImage::ImageLumaA16(_) => "16-bit gray+alpha",
+        DynamicImage::ImageRgb16(_) => "16-bit RGB",
+        DynamicImage::ImageRgba16(_) => "16-bit RGBA",
+        DynamicImage::ImageRgb32F(_) => "32-bit float RGB",
+        DynamicImage::ImageRgba32F(_) => "32-bit float RGBA",
+        _ => "an unknown pixel format",
+    };
+    let container = format.map_or("image".to_owned(), |f| format!("{f:?}").to_uppercase());
+    format!("{color} {container}")
+}
+
+/// Errors unless `(width, height)` is `expected`, in pixels.
+fn check_size(
+    path: &Path,
+    (width, height): (u32, u32),
+    expected: (u32, u32),
+) -> Result<(), DatasetError> {
+    if (width, height) != expected {
+        return Err(DatasetError::ImageSize {
+            path: path.to_owned(),
+            width,
+            height,
+            expected_width: expected.0,
+            expected_height: expected.1,
+        });
+    }
+    Ok(())
+}
+
+/// BT.601 luma in OpenCV's 14-bit fixed point, on samples of any width up to 16 bits.
+fn luma(r: u32, g: u32, b: u32) -> u32 {
+    (4899 * r + 9617 * g + 1868 * b + 8192) >> 14
+}
+
+/// A 16-bit sample reduced to 8 bits, rounding to nearest.
+fn to_u8(v: u32) -> u8 {
+    ((v * 255 + 32767) / 65535) as u8
+}
+
+/// Converts RGB(A) samples with `step` channels per pixel to gray with `f` mapping luma to 8 bits.
+fn rgb_to_gray<T: Copy + Into<u32>>(s: &[T], step: usize, f: impl Fn(u32) -> u8) -> Vec<u8> {
+    s.chunks_exact(step)
+        .map(|p| match p {
+            [r, g, b, ..] => f(luma((*r).into(), (*g).into(), (*b).into())),
+            _ => 0,
+        })
+        .collect()
+}
+
+/// Decodes a colour (or gray) image to 8-bit gray, checking its size against `expected`.
+///
+/// # Errors
+/// [`DatasetError::Io`], [`DatasetError::Decode`], [`DatasetError::ImageSize`] or
+/// [`DatasetError::ColorFormat`], each naming `path`.
+pub(crate) fn decode_gray(path: &Path, expected: (u32, u32)) -> Result<Vec<u8>, DatasetError> {
+    let (image, format) = decode(path)?;
+    check_size(path, (image.width(), image.height()), expected)?;
+    let u8_id = |v: u32| v as u8;
+    let gray = match image {
+        DynamicImage::ImageLuma8(b) => b.into_raw(),
+        DynamicImage::ImageLumaA8(b) => b.into_raw().chunks_exact(2).map(|p| p[0]).collect(),
+        DynamicImage::ImageRgb8(b) => rgb_to_gray(b.as_raw(), 3, u8_id),
+        DynamicImage::ImageRgba8(b) => rgb_to_gray(b.as_raw(), 4, u8_id),
+        DynamicImage::ImageLuma16(b) => b.as_raw().iter().map(|&v| to_u8(v.into())).collect(),
+        DynamicImage::ImageLumaA16(b) => {
+            b.as_raw().chunks_exact(2).map(|p| to_u8(p[0].into())).collect()
+        }
+        DynamicImage::ImageRgb16(b) => rgb_to_gray(b.as_raw(), 3, to_u8),
+        DynamicImage::ImageRgba16(b) => rgb_to_gray(b.as_raw(), 4, to_u8),
+        other => {
+            let found = describe(&other, format);
+            return Err(DatasetError::ColorFormat { path: path.to_owned(), found });
+        }
+    };
+    Ok(gray)
+}
+
+/// Decodes a 16-bit gray PNG depth image, checking its size against `expected`.
+///
+/// # Errors
+/// [`DatasetError::Io`], [`DatasetError::Decode`], [`DatasetError::DepthFormat`] (any other pixel
+/// format or container, e.g. an 8-bit or colour PNG) or [`DatasetError::ImageSize`], each naming
+/// `path`.
+pub(crate) fn decode_depth(path: &Path, expected: (u32, u32)) -> Result<Vec<u16>, DatasetError> {
+    let (image, format) = decode(path)?;
+    match image {
+        DynamicImage::ImageLuma16(b) if format == Some(ImageFormat::Png) => {
+            check_size(path, b.dimensions(), expected)?;
+            Ok(b.into_raw())
+        }
+        other => Err(DatasetError::DepthFormat {
+            path: path.to_owned(),
+            found: describe(&other, format),
+        }),
+    }
+}
+
+/// Halves a packed `width` x `height` image `levels` times with `half` (a core 2x2 downsampler);
+/// returns the result and its size. `path` names the image in errors.
+pub(crate) fn downsample<P: Copy + Default>(
+    path: &Path,
+    mut data: Vec<P>,
+    (mut width, mut height): (usize, usize),
+    levels: u8,
+    half: impl Fn(&ImageView<'_, P>, &mut ImageViewMut<'_, P>) -> Result<(), ImageError>,
+) -> Result<(Vec<P>, (usize, usize)), DatasetError> {
+    let err = |source| DatasetError::Image { path: path.to_owned(), source };
+    for _ in 0..levels {
+        let (w2, h2) = (width / 2, height / 2);
+        let mut out = vec![P::default(); w2 * h2];
+        let src = ImageView::packed(&data, width, height).map_err(err)?;
+        let mut dst = ImageViewMut::packed(&mut out, w2, h2).map_err(err)?;
+        half(&src, &mut dst).map_err(err)?;
+        (data, width, height) = (out, w2, h2);
+    }
+    Ok((data, (width, height)))
+}
+
+/// The core's gray downsampler, in the shape [`downsample`] takes.
+pub(crate) fn half_gray(src: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Result<(), ImageError> {
+    downsample_gray_2x(src, dst)
+}
+
+/// The core's depth downsampler, in the shape [`downsample`] takes.
+pub(crate) fn half_depth(
+    src: &ImageView<'_, u16>,
+    dst: &mut ImageViewMut<'_, u16>,
+) -> Result<(), ImageError> {
+    downsample_depth_2x(src, dst)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn luma_matches_opencv_fixed_point() {
+        assert_eq!(luma(255, 255, 255), 255);
+        assert_eq!(luma(0, 0, 0), 0);
+        // cv::cvtColor(RGB2GRAY) of pure red, green, blue: 76, 150, 29.
+        assert_eq!((luma(255, 0, 0), luma(0, 255, 0), luma(0, 0, 255)), (76, 150, 29));
+        assert_eq!(luma(65535, 65535, 65535), 65535);
+        assert_eq!((to_u8(65535), to_u8(0), to_u8(257 * 100)), (255, 0, 100));
+    }
+
+    #[test]
+    fn view_checks_buffer_sizes() {
+        let f = OwnedFrame {
+            timestamp_s: 1.5,
+            width: 2,
+            height: 2,
+            gray: vec![1, 2, 3, 4],
+            depth: vec![0, 1000, 2000, 3000],
+            depth_scale: 1000.0,
+        };
+        let v = f.view().unwrap();
+        assert_eq!(v.timestamp_s, 1.5);
+        assert_eq!(v.depth.depth_m(1, 1), Some(3.0));
+        let short = OwnedFrame { depth: vec![0; 3], ..f.clone() };
+        assert!(short.view().is_err());
+        assert!(OwnedFrame { depth_scale: f32::NAN, ..f }.view().is_err());
+    }
+}

@@ -1,0 +1,373 @@
+//! TUM RGB-D folders: lists, association, calibration, and image decoding on a read-ahead thread.
+//!
+//! A dataset folder holds `rgb.txt` and `depth.txt` (`timestamp path` lines), an optional
+//! `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, camera to world) and, unless a preset is
+//! chosen, `calibration.toml` (see [`Calibration`]). Opening one ([`Dataset::open`]) parses the
+//! lists, checks which listed images exist, associates colour to depth by timestamp and validates
+//! the calibration; it decodes nothing. Frames are decoded one at a time with
+//! [`Dataset::load_frame`], or ahead of the pipeline on another thread by a [`DatasetReader`],
+//! which implements the core's [`ferroslam_core::frame::FrameSource`] port.
+//!
+//! Policy for what real TUM sequences contain:
+//! - a listed image that is not on disk is skipped, not fatal: it is left out before association
+//!   (so it cannot take a partner from a present frame) and reported by [`Dataset::skipped`], which
+//!   the CLI prints as a counted warning; a dataset with no usable frame at all is an error;
+//! - colour and depth are associated as TUM's `associate.py` does (see `associate`); frames that
+//!   find no partner within [`DatasetOptions::max_dt_s`] are skipped and reported the same way;
+//! - each frame's time is its colour image's timestamp;
+//! - ground truth is parsed (by [`crate::trajectory::Trajectory::parse_tum`]) but not associated
+//!   per frame (evaluation associates whole trajectories).
+//!
+//! Everything else that is wrong (a malformed line, timestamps that do not increase, a bad
+//! calibration, an undecodable image, a depth image that is not 16-bit, a size that differs from
+//! the calibration) is a [`DatasetError`] naming the file and, for lists, the 1-based line.
+
+mod associate;
+mod calibration;
+mod decode;
+mod error;
+mod lists;
+mod reader;
+#[cfg(test)]
+mod tests;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use ferroslam_core::config::{Config, Profile, Tunables};
+
+pub use calibration::Calibration;
+pub use decode::OwnedFrame;
+pub use error::DatasetError;
+pub use reader::DatasetReader;
+
+/// Ground-truth poses are the trajectory module's type (re-exported for convenience).
+pub use crate::trajectory::StampedPose;
+use crate::trajectory::Trajectory;
+use lists::ListEntry;
+
+/// Where the camera calibration comes from.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum CalibrationSource {
+    /// `calibration.toml` in the dataset folder.
+    #[default]
+    File,
+    /// A named preset: `tum1`, `tum2` or `tum3` (see [`Calibration::preset`]).
+    Preset(String),
+}
+
+/// How to open a dataset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DatasetOptions {
+    /// Where the calibration comes from (default: the folder's `calibration.toml`).
+    pub calibration: CalibrationSource,
+    /// The processing resolution: frames are halved `profile.downsample_levels` times after
+    /// decoding (default: the core's default profile, QVGA).
+    pub profile: Profile,
+    /// Keep at most this many associated frames, the earliest (default: all).
+    pub max_frames: Option<usize>,
+    /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
+    /// core's `Tunables::association_max_dt_s`, 0.02 s).
+    pub max_dt_s: f64,
+}
+
+impl Default for DatasetOptions {
+    fn default() -> Self {
+        Self {
+            calibration: CalibrationSource::File,
+            profile: Config::default().profile,
+            max_frames: None,
+            max_dt_s: Tunables::default().association_max_dt_s,
+        }
+    }
+}
+
+/// One colour image and the depth image associated with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssociatedFrame {
+    /// Colour timestamp in seconds (the frame's time).
+    pub rgb_timestamp_s: f64,
+    /// The colour image: its list path joined to the dataset folder.
+    pub rgb_path: PathBuf,
+    /// Depth timestamp in seconds.
+    pub depth_timestamp_s: f64,
+    /// The depth image: its list path joined to the dataset folder.
+    pub depth_path: PathBuf,
+}
+
+/// Why a listed image is not replayed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SkipReason {
+    /// The image file does not exist (or is not a regular file).
+    Missing,
+    /// No image of the other stream lies within the association limit (or the nearest ones were
+    /// taken by closer frames).
+    Unassociated,
+}
+
+/// A listed image that is not replayed, and why; `Display` gives a one-line warning.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SkippedFrame {
+    /// The list naming it (`.../rgb.txt` or `.../depth.txt`).
+    pub list: PathBuf,
+    /// 1-based line in that list.
+    pub line: usize,
+    /// Its timestamp, in seconds.
+    pub timestamp_s: f64,
+    /// The image path.
+    pub path: PathBuf,
+    /// Why it is skipped.
+    pub reason: SkipReason,
+}
+
+impl fmt::Display for SkippedFrame {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (list, line, path) = (self.list.display(), self.line, self.path.display());
+        match self.reason {
+            SkipReason::Missing => write!(f, "{list}:{line}: {path} does not exist; skipped"),
+            SkipReason::Unassociated => write!(
+                f,
+                "{list}:{line}: {path} (t = {} s) has no partner within the association limit; \
+                 skipped",
+                self.timestamp_s
+            ),
+        }
+    }
+}
+
+/// An opened TUM RGB-D folder: associated frame list, calibration and ground truth. Decodes
+/// nothing until asked.
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    dir: PathBuf,
+    frames: Vec<AssociatedFrame>,
+    skipped: Vec<SkippedFrame>,
+    groundtruth: Option<Trajectory>,
+    sensor: Calibration,
+    calibration: Calibration,
+    profile: Profile,
+}
+
+impl Dataset {
+    /// Opens the folder `dir`: reads the calibration and the lists, drops listed images that are
+    /// not on disk, associates colour to depth and applies `max_frames`.
+    ///
+    /// # Errors
+    /// [`DatasetError::Io`] for a missing or unreadable `rgb.txt`, `depth.txt` or calibration file
+    /// (an absent `groundtruth.txt` is fine), the list and calibration errors of the module doc,
+    /// [`DatasetError::ProfileSize`] when the calibrated size cannot be halved as the profile asks,
+    /// and [`DatasetError::EmptyDataset`] when no frame is left.
+    pub fn open(dir: &Path, opts: &DatasetOptions) -> Result<Self, DatasetError> {
+        let sensor = match &opts.calibration {
+            CalibrationSource::File => Calibration::load(dir.join("calibration.toml"))?,
+            CalibrationSource::Preset(name) => Calibration::preset(name)?,
+        };
+        let levels = opts.profile.downsample_levels;
+        let divisor = 1u32.checked_shl(u32::from(levels)).unwrap_or(0);
+        if divisor == 0 || sensor.width % divisor != 0 || sensor.height % divisor != 0 {
+            return Err(DatasetError::ProfileSize {
+                width: sensor.width,
+                height: sensor.height,
+                profile: opts.profile.name,
+                levels,
+            });
+        }
+
+        let rgb_list = dir.join("rgb.txt");
+        let depth_list = dir.join("depth.txt");
+        let rgb = lists::parse_image_list(&rgb_list, &lists::read_text(&rgb_list)?, dir)?;
+        let depth = lists::parse_image_list(&depth_list, &lists::read_text(&depth_list)?, dir)?;
+        let groundtruth = read_groundtruth(&dir.join("groundtruth.txt"))?;
+
+        let mut skipped = Vec::new();
+        let rgb_present = keep_present(&rgb_list, rgb, &mut skipped);
+        let depth_present = keep_present(&depth_list, depth, &mut skipped);
+        let (mut frames, unpaired) = pair(&rgb_present, &depth_present, opts.max_dt_s);
+        for (list, entry) in unpaired {
+            let list = if list == Stream::Rgb { &rgb_list } else { &depth_list };
+            skipped.push(skip(list, entry, SkipReason::Unassociated));
+        }
+        skipped.sort_by(|a, b| a.list.cmp(&b.list).then(a.line.cmp(&b.line)));
+        let associated = frames.len();
+        if let Some(max) = opts.max_frames {
+            frames.truncate(max);
+        }
+        if frames.is_empty() {
+            let missing = skipped.iter().filter(|s| s.reason == SkipReason::Missing).count();
+            let reason = format!(
+                "{} colour and {} depth images on disk ({missing} listed but missing), {} \
+                 associated within {} s, max_frames {:?}",
+                rgb_present.len(),
+                depth_present.len(),
+                associated,
+                opts.max_dt_s,
+                opts.max_frames,
+            );
+            return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
+        }
+        let calibration = sensor.downsampled(levels);
+        let profile = opts.profile;
+        Ok(Self { dir: dir.to_owned(), frames, skipped, groundtruth, sensor, calibration, profile })
+    }
+
+    /// The dataset folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Number of associated frames (after `max_frames`).
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Whether there are no frames (never true for an opened dataset).
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// The associated frames, sorted by colour timestamp.
+    pub fn frames(&self) -> &[AssociatedFrame] {
+        &self.frames
+    }
+
+    /// The ground-truth trajectory (camera to world), or `None` when the folder has no
+    /// `groundtruth.txt` or it holds no pose line.
+    pub fn groundtruth(&self) -> Option<&[StampedPose]> {
+        self.groundtruth.as_ref().map(|t| t.poses.as_slice())
+    }
+
+    /// The ground truth as a [`Trajectory`] (what evaluation takes), or `None` as for
+    /// [`Dataset::groundtruth`].
+    pub fn groundtruth_trajectory(&self) -> Option<&Trajectory> {
+        self.groundtruth.as_ref()
+    }
+
+    /// The calibration at the processing profile's resolution (what the core must use).
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// The calibration at the sensor's resolution, as read.
+    pub fn sensor_calibration(&self) -> &Calibration {
+        &self.sensor
+    }
+
+    /// The processing profile.
+    pub fn profile(&self) -> Profile {
+        self.profile
+    }
+
+    /// Listed images that are not replayed (missing on disk or unassociated), sorted by list and
+    /// line. `Display` of each is a one-line warning.
+    pub fn skipped(&self) -> &[SkippedFrame] {
+        &self.skipped
+    }
+
+    /// Decodes frame `index`: colour to 8-bit gray, depth as raw 16-bit, both checked against the
+    /// calibrated size and then halved `profile.downsample_levels` times by the core's 2x2
+    /// downsamplers.
+    ///
+    /// # Errors
+    /// [`DatasetError::FrameIndex`] past the end; [`DatasetError::Io`], [`DatasetError::Decode`],
+    /// [`DatasetError::ColorFormat`], [`DatasetError::DepthFormat`] or [`DatasetError::ImageSize`]
+    /// naming the image file.
+    pub fn load_frame(&self, index: usize) -> Result<OwnedFrame, DatasetError> {
+        let frame = self
+            .frames
+            .get(index)
+            .ok_or(DatasetError::FrameIndex { index, len: self.frames.len() })?;
+        let size = (self.sensor.width, self.sensor.height);
+        let gray = decode::decode_gray(&frame.rgb_path, size)?;
+        let depth = decode::decode_depth(&frame.depth_path, size)?;
+        let full = (size.0 as usize, size.1 as usize);
+        let levels = self.profile.downsample_levels;
+        let (gray, (width, height)) =
+            decode::downsample(&frame.rgb_path, gray, full, levels, decode::half_gray)?;
+        let (depth, _) =
+            decode::downsample(&frame.depth_path, depth, full, levels, decode::half_depth)?;
+        Ok(OwnedFrame {
+            timestamp_s: frame.rgb_timestamp_s,
+            width,
+            height,
+            gray,
+            depth,
+            depth_scale: self.sensor.depth_scale,
+        })
+    }
+
+    /// Moves the dataset into a reader that decodes up to `read_ahead` frames ahead of the caller
+    /// on its own thread (see [`DatasetReader`]).
+    pub fn into_reader(self, read_ahead: usize) -> DatasetReader {
+        DatasetReader::new(self, read_ahead)
+    }
+}
+
+/// Reads `groundtruth.txt` if it exists, with the trajectory module's TUM reader.
+fn read_groundtruth(path: &Path) -> Result<Option<Trajectory>, DatasetError> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => {
+            let trajectory = Trajectory::parse_tum(&text, path)?;
+            Ok(if trajectory.is_empty() { None } else { Some(trajectory) })
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(DatasetError::Io { path: path.to_owned(), source }),
+    }
+}
+
+/// Which list an entry came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stream {
+    Rgb,
+    Depth,
+}
+
+fn skip(list: &Path, entry: &ListEntry, reason: SkipReason) -> SkippedFrame {
+    SkippedFrame {
+        list: list.to_owned(),
+        line: entry.line,
+        timestamp_s: entry.timestamp_s,
+        path: entry.path.clone(),
+        reason,
+    }
+}
+
+/// The entries whose image is a file; the others go to `skipped`.
+fn keep_present(
+    list: &Path,
+    entries: Vec<ListEntry>,
+    skipped: &mut Vec<SkippedFrame>,
+) -> Vec<ListEntry> {
+    let (present, missing): (Vec<_>, Vec<_>) = entries.into_iter().partition(|e| e.path.is_file());
+    skipped.extend(missing.iter().map(|e| skip(list, e, SkipReason::Missing)));
+    present
+}
+
+/// Associates the two streams; returns the frames and the entries left without a partner.
+fn pair<'a>(
+    rgb: &'a [ListEntry],
+    depth: &'a [ListEntry],
+    max_dt_s: f64,
+) -> (Vec<AssociatedFrame>, Vec<(Stream, &'a ListEntry)>) {
+    let ta: Vec<f64> = rgb.iter().map(|e| e.timestamp_s).collect();
+    let tb: Vec<f64> = depth.iter().map(|e| e.timestamp_s).collect();
+    let pairs = associate::associate(&ta, &tb, max_dt_s);
+    let mut used_rgb = vec![false; rgb.len()];
+    let mut used_depth = vec![false; depth.len()];
+    let mut frames = Vec::with_capacity(pairs.len());
+    for (i, j) in pairs {
+        let (Some(c), Some(d)) = (rgb.get(i), depth.get(j)) else { continue };
+        used_rgb[i] = true;
+        used_depth[j] = true;
+        frames.push(AssociatedFrame {
+            rgb_timestamp_s: c.timestamp_s,
+            rgb_path: c.path.clone(),
+            depth_timestamp_s: d.timestamp_s,
+            depth_path: d.path.clone(),
+        });
+    }
+    let unpaired_rgb = rgb.iter().zip(used_rgb).filter(|(_, u)| !u).map(|(e, _)| (Stream::Rgb, e));
+    let unpaired_depth =
+        depth.iter().zip(used_depth).filter(|(_, u)| !u).map(|(e, _)| (Stream::Depth, e));
+    (frames, unpaired_rgb.chain(unpaired_depth).collect())
+}

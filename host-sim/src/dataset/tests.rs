@@ -1,0 +1,232 @@
+//! Dataset tests on small folders written to a temporary directory.
+
+use std::fs;
+use std::path::Path;
+
+use ferroslam_core::config::{QVGA, VGA};
+use ferroslam_core::frame::FrameSource;
+use image::{ImageBuffer, Luma, LumaA, Rgb};
+
+use super::*;
+
+const W: u32 = 8;
+const H: u32 = 6;
+
+fn write(dir: &Path, name: &str, text: &str) {
+    fs::write(dir.join(name), text).unwrap();
+}
+
+/// Gray value of colour frame `k` at pixel `i`.
+fn gray_at(k: usize, i: usize) -> u8 {
+    (k * 40 + i * 3) as u8
+}
+
+/// Raw depth of frame `k` at pixel `i` (0 every 7th pixel: no reading).
+fn depth_at(k: usize, i: usize) -> u16 {
+    if i.is_multiple_of(7) { 0 } else { 1000 + (k * 100 + i) as u16 }
+}
+
+fn save_gray(path: &Path, k: usize) {
+    let px = (0..(W * H) as usize).map(|i| gray_at(k, i)).collect();
+    ImageBuffer::<Luma<u8>, Vec<u8>>::from_raw(W, H, px).unwrap().save(path).unwrap();
+}
+
+fn save_depth(path: &Path, k: usize) {
+    let px = (0..(W * H) as usize).map(|i| depth_at(k, i)).collect();
+    ImageBuffer::<Luma<u16>, Vec<u16>>::from_raw(W, H, px).unwrap().save(path).unwrap();
+}
+
+/// A TUM-like folder: colour at 30 Hz from t0, depth 7 ms later on its own clock, a depth frame
+/// listed but absent, a colour frame with no depth partner, 100 Hz ground truth.
+fn tum_like(dir: &Path, n: usize) {
+    fs::create_dir_all(dir.join("rgb")).unwrap();
+    fs::create_dir_all(dir.join("depth")).unwrap();
+    let t0 = 1305031102.175304;
+    let mut rgb = String::from("# color images\n# timestamp filename\n");
+    let mut depth = String::from("# depth maps\n\n");
+    for k in 0..n {
+        let t = t0 + k as f64 / 30.0;
+        rgb += &format!("{t:.6} rgb/{k}.png\n");
+        save_gray(&dir.join(format!("rgb/{k}.png")), k);
+        if k == n - 1 {
+            continue; // the last colour frame has no depth at all
+        }
+        depth += &format!("{:.6} depth/{k}.png\n", t + 0.007);
+        if k != 1 {
+            save_depth(&dir.join(format!("depth/{k}.png")), k);
+        }
+    }
+    let mut gt = String::from("# timestamp tx ty tz qx qy qz qw\n");
+    for k in 0..(n * 10 / 3) {
+        gt += &format!("{:.4} {} 0 0 0 0 0 1\n", t0 - 0.05 + k as f64 * 0.01, k as f64 * 0.001);
+    }
+    write(dir, "rgb.txt", &rgb);
+    write(dir, "depth.txt", &depth);
+    write(dir, "groundtruth.txt", &gt);
+    write(
+        dir,
+        "calibration.toml",
+        "fx = 10.0\nfy = 11.0\ncx = 3.5\ncy = 2.5\nwidth = 8\nheight = 6\ndepth_scale = 5000.0\n",
+    );
+}
+
+fn opts(profile: Profile) -> DatasetOptions {
+    DatasetOptions { profile, ..DatasetOptions::default() }
+}
+
+#[test]
+fn open_associates_skips_missing_and_reads_groundtruth() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 6);
+    let ds = Dataset::open(tmp.path(), &opts(VGA)).unwrap();
+    // Frames 0, 2, 3, 4: depth 1 is missing, colour 5 has no depth; colour 1 is then unpaired.
+    assert_eq!(ds.len(), 4);
+    assert!(
+        ds.frames().iter().all(|f| (f.depth_timestamp_s - f.rgb_timestamp_s - 0.007).abs() < 1e-6)
+    );
+    assert!(ds.frames()[1].rgb_path.ends_with("rgb/2.png"));
+    let reasons: Vec<_> = ds.skipped().iter().map(|s| (s.line, s.reason)).collect();
+    // Sorted by list path (depth.txt before rgb.txt), then line.
+    assert_eq!(
+        reasons,
+        vec![
+            (4, SkipReason::Missing),
+            (4, SkipReason::Unassociated),
+            (8, SkipReason::Unassociated)
+        ]
+    );
+    let msg = ds.skipped()[0].to_string();
+    assert!(msg.contains("depth.txt:4: ") && msg.contains("depth/1.png does not exist"), "{msg}");
+    assert_eq!(ds.groundtruth().map(<[_]>::len), Some(20));
+    assert_eq!(ds.calibration(), ds.sensor_calibration());
+}
+
+#[test]
+fn max_frames_and_profile_calibration() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 6);
+    let o = DatasetOptions { max_frames: Some(2), ..opts(QVGA) };
+    let ds = Dataset::open(tmp.path(), &o).unwrap();
+    assert_eq!(ds.len(), 2);
+    let c = ds.calibration();
+    assert_eq!((c.fx, c.fy, c.cx, c.cy, c.width, c.height), (5.0, 5.5, 1.5, 1.0, 4, 3));
+    assert_eq!(ds.sensor_calibration().width, 8);
+}
+
+#[test]
+fn load_frame_decodes_and_halves() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 4);
+    let vga = Dataset::open(tmp.path(), &opts(VGA)).unwrap();
+    let f = vga.load_frame(1).unwrap(); // colour 2 with depth 2
+    assert_eq!((f.width, f.height, f.depth_scale), (8, 6, 5000.0));
+    assert_eq!(f.timestamp_s, vga.frames()[1].rgb_timestamp_s);
+    assert!(f.gray.iter().enumerate().all(|(i, &g)| g == gray_at(2, i)));
+    assert!(f.depth.iter().enumerate().all(|(i, &d)| d == depth_at(2, i)));
+    assert!(f.view().is_ok());
+
+    let qvga = Dataset::open(tmp.path(), &opts(QVGA)).unwrap();
+    let h = qvga.load_frame(1).unwrap();
+    assert_eq!((h.width, h.height, h.gray.len(), h.depth.len()), (4, 3, 12, 12));
+    // Top-left block: pixels 0, 1, 8, 9 of the full image.
+    let mean = [0, 1, 8, 9].iter().map(|&i| u16::from(gray_at(2, i))).sum::<u16>();
+    assert_eq!(u16::from(h.gray[0]), (mean + 2) / 4);
+    assert!(matches!(qvga.load_frame(9), Err(DatasetError::FrameIndex { index: 9, len: 2 })));
+}
+
+#[test]
+fn colour_formats_convert_to_bt601_gray() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    tum_like(dir, 5); // frames: colour 0, 2, 3
+    let rgb: Vec<u8> = (0..W * H).flat_map(|_| [255u8, 0, 0]).collect();
+    ImageBuffer::<Rgb<u8>, Vec<u8>>::from_raw(W, H, rgb)
+        .unwrap()
+        .save(dir.join("rgb/0.png"))
+        .unwrap();
+    let rgb16: Vec<u16> = (0..W * H).flat_map(|_| [0u16, 65535, 0]).collect();
+    let img16 = ImageBuffer::<Rgb<u16>, Vec<u16>>::from_raw(W, H, rgb16).unwrap();
+    img16.save(dir.join("rgb/2.png")).unwrap();
+    let ds = Dataset::open(dir, &opts(VGA)).unwrap();
+    assert!(ds.load_frame(0).unwrap().gray.iter().all(|&g| g == 76));
+    assert!(ds.load_frame(1).unwrap().gray.iter().all(|&g| g == 150));
+    let la: Vec<u8> = (0..W * H).flat_map(|_| [33u8, 7]).collect();
+    let la = ImageBuffer::<LumaA<u8>, Vec<u8>>::from_raw(W, H, la).unwrap();
+    la.save(dir.join("rgb/0.png")).unwrap();
+    assert!(ds.load_frame(0).unwrap().gray.iter().all(|&g| g == 33));
+    // JPEG colour decodes too (lossy: only the size and a rough level are checked).
+    let grey: Vec<u8> = vec![128; (W * H * 3) as usize];
+    let jpg = ImageBuffer::<Rgb<u8>, Vec<u8>>::from_raw(W, H, grey).unwrap();
+    jpg.save(dir.join("rgb/0.jpg")).unwrap();
+    fs::rename(dir.join("rgb/0.jpg"), dir.join("rgb/0.png")).unwrap(); // content decides, not name
+    let g = ds.load_frame(0).unwrap().gray;
+    assert!(g.len() == (W * H) as usize && g.iter().all(|&v| v.abs_diff(128) < 4));
+}
+
+#[test]
+fn reader_streams_in_order_and_delivers_errors_in_place() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 6);
+    let ds = Dataset::open(tmp.path(), &opts(QVGA)).unwrap();
+    let expected: Vec<_> = (0..ds.len()).map(|i| ds.load_frame(i).unwrap()).collect();
+    // Corrupt frame 2's depth after opening: the reader must give an error in its place.
+    let bad = ds.frames()[2].depth_path.clone();
+    fs::write(&bad, b"not a png").unwrap();
+    for read_ahead in [0, 1, 8] {
+        let mut reader = ds.clone().into_reader(read_ahead);
+        for (i, want) in expected.iter().enumerate() {
+            match reader.next_frame() {
+                Ok(Some(f)) => {
+                    assert_ne!(i, 2);
+                    assert_eq!(f.timestamp_s, want.timestamp_s);
+                    assert_eq!(f.gray.row(0), Some(&want.gray[..want.width]));
+                }
+                Err(DatasetError::Decode { path, .. }) => assert!(i == 2 && path == bad),
+                other => panic!("frame {i}: {other:?}"),
+            }
+        }
+        assert!(matches!(reader.next_frame(), Ok(None)));
+        assert!(matches!(reader.next_frame(), Ok(None)));
+        assert_eq!(reader.position(), expected.len());
+    }
+}
+
+#[test]
+fn dropping_a_reader_mid_stream_stops_its_thread() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 30);
+    let ds = Dataset::open(tmp.path(), &opts(VGA)).unwrap();
+    let mut reader = ds.into_reader(2);
+    assert!(reader.next_owned().unwrap().is_some());
+    // The thread is blocked on a full channel; drop must close it and join without hanging.
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    drop(reader);
+}
+
+#[test]
+fn open_errors_name_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    tum_like(dir, 3);
+    write(dir, "depth.txt", "1305031102.182304 depth/0.png\n1305031102.1 depth/1.png\n");
+    let err = Dataset::open(dir, &opts(VGA)).unwrap_err();
+    assert!(err.to_string().contains("depth.txt:2: timestamp"), "{err}");
+    write(dir, "groundtruth.txt", "1 2 3\n");
+    write(dir, "depth.txt", "1305031102.182304 depth/0.png\n");
+    let err = Dataset::open(dir, &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::Groundtruth { .. }), "{err}");
+    assert!(err.to_string().contains("groundtruth.txt:1"), "{err}");
+    fs::remove_file(dir.join("groundtruth.txt")).unwrap();
+    assert!(Dataset::open(dir, &opts(VGA)).unwrap().groundtruth().is_none());
+}
+
+#[test]
+fn errors_and_readers_cross_threads() {
+    // The CLI wraps errors in anyhow (needs Send + Sync + 'static) and may move a reader to a
+    // pipeline thread.
+    fn send_sync<T: Send + Sync + 'static>() {}
+    fn send<T: Send>() {}
+    send_sync::<DatasetError>();
+    send::<DatasetReader>();
+    send_sync::<Dataset>();
+}
