@@ -5,6 +5,10 @@ use std::process::Command;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use ferroslam_core::config::VGA;
+use ferroslam_sim::dataset::{Dataset, DatasetOptions};
+
+use crate::firmware::FrameForCheck;
 
 /// The cross target of the reference board (Cortex-M4F/M7F with single-precision FPU).
 pub const THUMB: &str = "thumbv7em-none-eabihf";
@@ -115,8 +119,19 @@ fn thumb_build_without_allocator() -> Result<()> {
 /// Frame 0 of `dataset` through the firmware in QEMU and through the host: W(I) must agree bit
 /// for bit.
 pub fn firmware_wi(dataset: Option<&str>) -> Result<()> {
-    let _dataset = root().join(dataset.unwrap_or(SEVEN_SCENES));
-    bail!("the QEMU check is not wired yet")
+    let dir = root().join(dataset.unwrap_or(SEVEN_SCENES));
+    // The firmware takes the sensor's full-resolution frame and downsamples it itself.
+    let opts = DatasetOptions { profile: VGA, max_frames: Some(1), ..DatasetOptions::default() };
+    let frame = Dataset::open(&dir, &opts)?.load_frame(0)?;
+    let frame = FrameForCheck {
+        width: u32::try_from(frame.width)?,
+        height: u32::try_from(frame.height)?,
+        gray: frame.gray,
+        depth: frame.depth,
+        depth_scale: frame.depth_scale,
+        timestamp_s: frame.timestamp_s,
+    };
+    crate::firmware::run_wi_check(&root(), frame)
 }
 
 /// Replays the real 7-Scenes recording through the host simulator's data path and checks its report.

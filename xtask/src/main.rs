@@ -8,6 +8,7 @@
 //! - `firmware-wi [DATASET]`: only the QEMU check (frame 0 of DATASET, default 7-Scenes).
 
 mod ci;
+mod firmware;
 
 use std::process::ExitCode;
 

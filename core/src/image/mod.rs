@@ -1,6 +1,15 @@
 //! Images: borrowed views with stride, 2x downsampling, and the image variation of the paper's
 //! Eq. 3 (`v_m`, `W(I)`).
+//!
+//! - [`ImageView`] / [`ImageViewMut`] and their gray and depth aliases: the caller owns the pixels.
+//! - [`downsample_gray_2x`] (rounded 2x2 mean) and [`downsample_depth_2x`] (a real sample per
+//!   block, never an average across an object edge): one pyramid level, VGA to QVGA.
+//! - [`variation`], [`variation_map`] and [`total_variation`]: `v_m` and `W(I)` of Eq. 3.
 
+mod downsample;
+mod variation;
 mod view;
 
+pub use downsample::{downsample_depth_2x, downsample_gray_2x};
+pub use variation::{total_variation, variation, variation_map};
 pub use view::{DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut};

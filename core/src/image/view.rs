@@ -209,6 +209,14 @@ impl<'a, P: Copy> ImageViewMut<'a, P> {
         self.data.get_mut(start..start + self.width)
     }
 
+    /// The rows from top to bottom for writing, each exactly `width` pixels.
+    pub fn rows_mut(&mut self) -> impl Iterator<Item = &mut [P]> + '_ {
+        let width = self.width;
+        // `check_layout` guarantees `height` chunks, the last one possibly shorter than `stride`
+        // but never shorter than `width`; `get_mut` keeps that a checked fact, not a panic.
+        self.data.chunks_mut(self.stride).take(self.height).filter_map(move |r| r.get_mut(..width))
+    }
+
     /// A read-only view of the same pixels.
     pub fn as_view(&self) -> ImageView<'_, P> {
         ImageView { data: self.data, width: self.width, height: self.height, stride: self.stride }

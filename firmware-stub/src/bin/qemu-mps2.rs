@@ -1,3 +1,0 @@
-//! QEMU mps2-an386 binary (being written).
-#![no_std]
-#![no_main]
