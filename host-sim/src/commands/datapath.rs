@@ -1,0 +1,218 @@
+//! The data path every frame takes before tracking: a [`FrameSource`] (dataset reader, synthetic
+//! renderer, or one wrapped in [`ProfileSource`]), then the core's per-frame image statistics.
+//!
+//! Until the front end exists (issue 3) this is all the pipeline does with a frame: the image
+//! variation `W(I)` of the paper's Eq. 3, computed by the core, and the depth coverage.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use ferroslam_core::frame::{FrameSource, RgbdFrame};
+use ferroslam_core::image::{
+    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, downsample_depth_2x,
+    downsample_gray_2x, total_variation,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+/// Owned buffers for a frame halved one or more times.
+#[derive(Debug, Default)]
+struct Halved {
+    gray: Vec<u8>,
+    depth: Vec<u16>,
+    scratch_gray: Vec<u8>,
+    scratch_depth: Vec<u16>,
+    size: (usize, usize),
+}
+
+/// Halves `src` once into `dst`, resizing `dst`; returns the new size.
+fn halve(
+    gray: &GrayView<'_>,
+    depth: &ImageView<'_, u16>,
+    dst_gray: &mut Vec<u8>,
+    dst_depth: &mut Vec<u16>,
+) -> Result<(usize, usize), ImageError> {
+    let (w, h) = (gray.width() / 2, gray.height() / 2);
+    dst_gray.resize(w * h, 0);
+    dst_depth.resize(w * h, 0);
+    downsample_gray_2x(gray, &mut GrayViewMut::packed(dst_gray, w, h)?)?;
+    downsample_depth_2x(depth, &mut ImageViewMut::packed(dst_depth, w, h)?)?;
+    Ok((w, h))
+}
+
+impl Halved {
+    /// Halves `frame` `levels` (at least 1) times; the result is in `gray`/`depth`.
+    fn run(&mut self, frame: &RgbdFrame<'_>, levels: u8) -> Result<(), ImageError> {
+        self.size = halve(&frame.gray, &frame.depth.raw(), &mut self.gray, &mut self.depth)?;
+        for _ in 1..levels {
+            core::mem::swap(&mut self.gray, &mut self.scratch_gray);
+            core::mem::swap(&mut self.depth, &mut self.scratch_depth);
+            let (w, h) = self.size;
+            let gray = GrayView::packed(&self.scratch_gray, w, h)?;
+            let depth = ImageView::packed(&self.scratch_depth, w, h)?;
+            self.size = halve(&gray, &depth, &mut self.gray, &mut self.depth)?;
+        }
+        Ok(())
+    }
+}
+
+/// A source that halves every frame of `inner` `levels` times with the core's downsampling, as the
+/// firmware does with sensor frames: the port wrapper that puts a VGA source at the QVGA profile.
+#[derive(Debug)]
+pub struct ProfileSource<S> {
+    inner: S,
+    levels: u8,
+    halved: Halved,
+}
+
+impl<S> ProfileSource<S> {
+    /// Wraps `inner`, halving its frames `levels` times (0 = pass frames through unchanged).
+    pub fn new(inner: S, levels: u8) -> Self {
+        Self { inner, levels, halved: Halved::default() }
+    }
+
+    /// The wrapped source.
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+}
+
+/// Why a [`ProfileSource`] could not give a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileSourceError<E: std::error::Error + 'static> {
+    /// The wrapped source failed.
+    #[error(transparent)]
+    Source(E),
+    /// The frame could not be downsampled.
+    #[error("downsampling the frame failed: {0}")]
+    Image(#[from] ImageError),
+}
+
+impl<S> FrameSource for ProfileSource<S>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + 'static,
+{
+    type Error = ProfileSourceError<S::Error>;
+
+    fn next_frame(&mut self) -> Result<Option<RgbdFrame<'_>>, Self::Error> {
+        let frame = self.inner.next_frame().map_err(ProfileSourceError::Source)?;
+        let Some(frame) = frame else { return Ok(None) };
+        if self.levels == 0 {
+            return Ok(Some(frame));
+        }
+        self.halved.run(&frame, self.levels)?;
+        let (w, h) = self.halved.size;
+        let gray = GrayView::packed(&self.halved.gray, w, h)?;
+        let raw = ImageView::packed(&self.halved.depth, w, h)?;
+        let depth = DepthView::new(raw, frame.depth.depth_scale())?;
+        Ok(Some(RgbdFrame { timestamp_s: frame.timestamp_s, gray, depth }))
+    }
+}
+
+/// What the data path saw in one frame.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct FrameStats {
+    /// Capture time, seconds.
+    pub timestamp_s: f64,
+    /// `W(I)`: the image's total variation (paper Eq. 3), gray levels summed over all pixels.
+    pub total_variation: u64,
+    /// Fraction of pixels with a depth reading.
+    pub valid_depth_fraction: f32,
+    /// Host wall-clock time the core spent on the frame, microseconds (informational only: the
+    /// cost contract is counted in instructions by the benchmarks).
+    pub process_us: f64,
+}
+
+/// The data path's result over a whole source.
+#[derive(Debug, Clone, Serialize)]
+pub struct DataPathRun {
+    /// Frames processed.
+    pub frames: usize,
+    /// Processing size of the frames, pixels.
+    pub width: usize,
+    /// Processing height of the frames, pixels.
+    pub height: usize,
+    /// Per-frame statistics, in capture order.
+    pub per_frame: Vec<FrameStats>,
+    /// Total time spent waiting for the source (decoding, rendering), seconds.
+    pub source_wait_s: f64,
+    /// Total time spent in the core, seconds.
+    pub process_s: f64,
+}
+
+/// Runs every frame of `source` through the core's data path, with a progress bar of `expected`
+/// frames on a terminal.
+///
+/// # Errors
+/// The source's error, with the index of the frame it came from; timestamps that do not increase.
+pub fn run<S>(source: &mut S, expected: usize) -> Result<DataPathRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
+    let bar = ProgressBar::new(expected as u64);
+    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}") {
+        bar.set_style(style);
+    }
+    let mut run = DataPathRun {
+        frames: 0,
+        width: 0,
+        height: 0,
+        per_frame: Vec::with_capacity(expected),
+        source_wait_s: 0.0,
+        process_s: 0.0,
+    };
+    let mut wait = Duration::ZERO;
+    let mut last_t = f64::NEG_INFINITY;
+    loop {
+        let asked = Instant::now();
+        let frame = source.next_frame().with_context(|| format!("frame {}", run.frames))?;
+        wait += asked.elapsed();
+        let Some(frame) = frame else { break };
+        if frame.timestamp_s <= last_t {
+            anyhow::bail!(
+                "frame {}: timestamp {} s does not follow {} s",
+                run.frames,
+                frame.timestamp_s,
+                last_t
+            );
+        }
+        last_t = frame.timestamp_s;
+        let started = Instant::now();
+        let stats = frame_stats(&frame);
+        let process = started.elapsed();
+        run.process_s += process.as_secs_f64();
+        (run.width, run.height) = frame.gray.size();
+        run.per_frame.push(FrameStats { process_us: process.as_secs_f64() * 1e6, ..stats });
+        run.frames += 1;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    run.source_wait_s = wait.as_secs_f64();
+    Ok(run)
+}
+
+/// The core's statistics of one frame.
+fn frame_stats(frame: &RgbdFrame<'_>) -> FrameStats {
+    let raw = frame.depth.raw();
+    let valid: usize = raw.rows().map(|r| r.iter().filter(|&&d| d != 0).count()).sum();
+    let pixels = raw.width() * raw.height();
+    FrameStats {
+        timestamp_s: frame.timestamp_s,
+        total_variation: total_variation(&frame.gray),
+        valid_depth_fraction: valid as f32 / pixels.max(1) as f32,
+        process_us: 0.0,
+    }
+}
+
+/// The median of `values` (the mean of the middle two for an even count); 0 when empty.
+pub fn median(values: impl IntoIterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.into_iter().collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
+    }
+}
