@@ -57,6 +57,9 @@ fn core_structure_sizes_match_the_budget_file() {
     assert_eq!(rows.len(), known.len(), "the table must list exactly the known structures");
     for (name, bytes) in rows {
         let actual = known.get(name.as_str()).unwrap_or_else(|| panic!("unknown type {name}"));
-        assert_eq!(*actual, bytes, "memory-budget.md says {name} is {bytes} bytes, size_of is {actual}");
+        assert_eq!(
+            *actual, bytes,
+            "memory-budget.md says {name} is {bytes} bytes, size_of is {actual}"
+        );
     }
 }

@@ -85,7 +85,9 @@ pub fn run_all() -> Result<()> {
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to host", || firmware_wi(None))?;
     step("replay 7-Scenes through the data path", replay_seven_scenes)?;
-    step("demo", || cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"]))?;
+    step("demo", || {
+        cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])
+    })?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
     Ok(())
 }
@@ -107,7 +109,11 @@ fn thumb_build_without_allocator() -> Result<()> {
     let symbols = String::from_utf8_lossy(&out.stdout);
     let alloc: Vec<&str> = symbols
         .lines()
-        .filter(|l| l.contains("__rust_alloc") || l.contains("__rg_alloc") || l.contains("__rust_no_alloc_shim"))
+        .filter(|l| {
+            l.contains("__rust_alloc")
+                || l.contains("__rg_alloc")
+                || l.contains("__rust_no_alloc_shim")
+        })
         .collect();
     if !alloc.is_empty() {
         bail!("the firmware links an allocator: {alloc:?}");
@@ -137,7 +143,17 @@ pub fn firmware_wi(dataset: Option<&str>) -> Result<()> {
 /// Replays the real 7-Scenes recording through the host simulator's data path and checks its report.
 fn replay_seven_scenes() -> Result<()> {
     let out = "target/ci/replay-7scenes";
-    cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "replay", SEVEN_SCENES, "--out", out])?;
+    cargo(&[
+        "run",
+        "--release",
+        "-p",
+        "ferroslam-sim",
+        "--",
+        "replay",
+        SEVEN_SCENES,
+        "--out",
+        out,
+    ])?;
     let report = std::fs::read_to_string(root().join(out).join("report.json"))
         .context("replay wrote no report.json")?;
     if !report.contains("\"frames\": 1000") {

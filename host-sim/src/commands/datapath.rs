@@ -152,7 +152,9 @@ where
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     let bar = ProgressBar::new(expected as u64);
-    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}") {
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
+    {
         bar.set_style(style);
     }
     let mut run = DataPathRun {

@@ -77,9 +77,9 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
-    let gt: Option<Vec<Point3<f64>>> = dataset.groundtruth_trajectory().map(|t| {
-        t.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect()
-    });
+    let gt: Option<Vec<Point3<f64>>> = dataset
+        .groundtruth_trajectory()
+        .map(|t| t.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect());
     let mut reader = dataset.into_reader(8);
     let run = datapath::run(&mut reader, frames)?;
     let note = format!(

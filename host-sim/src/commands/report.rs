@@ -62,7 +62,12 @@ pub struct Report {
 
 impl Report {
     /// A data-path report of `run`; `note` says what the run did.
-    pub fn data_path(run: &DataPathRun, profile: &'static str, skipped: usize, note: String) -> Self {
+    pub fn data_path(
+        run: &DataPathRun,
+        profile: &'static str,
+        skipped: usize,
+        note: String,
+    ) -> Self {
         let n = run.frames.max(1) as f64;
         Self {
             mode: "data-path",
