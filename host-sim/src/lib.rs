@@ -15,6 +15,7 @@
 pub mod commands;
 pub mod dataset;
 pub mod eval;
+pub mod frame;
 pub mod plot;
 pub mod synth;
 pub mod trajectory;

@@ -69,7 +69,7 @@ fn planar_inverse_depth(frame: &SynthFrame, u: f64, v: f64) -> Option<f64> {
     };
     let (a, b, c) = (solve(0), solve(1), solve(2));
     // Quantization: z is off by at most half a raw unit, 1/z by that over z^2.
-    let half_step = 0.5 / frame.depth_scale;
+    let half_step = 0.5 / f64::from(frame.depth_scale);
     let planar =
         pts.iter().all(|&(dx, dy, q)| (a * dx + b * dy + c - q).abs() <= 1.5 * half_step * q * q);
     planar.then_some(c)

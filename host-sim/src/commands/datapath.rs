@@ -8,53 +8,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
-use ferroslam_core::image::{
-    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, downsample_depth_2x,
-    downsample_gray_2x, total_variation,
-};
+use ferroslam_core::image::{ImageError, total_variation};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-/// Owned buffers for a frame halved one or more times.
-#[derive(Debug, Default)]
-struct Halved {
-    gray: Vec<u8>,
-    depth: Vec<u16>,
-    scratch_gray: Vec<u8>,
-    scratch_depth: Vec<u16>,
-    size: (usize, usize),
-}
-
-/// Halves `src` once into `dst`, resizing `dst`; returns the new size.
-fn halve(
-    gray: &GrayView<'_>,
-    depth: &ImageView<'_, u16>,
-    dst_gray: &mut Vec<u8>,
-    dst_depth: &mut Vec<u16>,
-) -> Result<(usize, usize), ImageError> {
-    let (w, h) = (gray.width() / 2, gray.height() / 2);
-    dst_gray.resize(w * h, 0);
-    dst_depth.resize(w * h, 0);
-    downsample_gray_2x(gray, &mut GrayViewMut::packed(dst_gray, w, h)?)?;
-    downsample_depth_2x(depth, &mut ImageViewMut::packed(dst_depth, w, h)?)?;
-    Ok((w, h))
-}
-
-impl Halved {
-    /// Halves `frame` `levels` (at least 1) times; the result is in `gray`/`depth`.
-    fn run(&mut self, frame: &RgbdFrame<'_>, levels: u8) -> Result<(), ImageError> {
-        self.size = halve(&frame.gray, &frame.depth.raw(), &mut self.gray, &mut self.depth)?;
-        for _ in 1..levels {
-            core::mem::swap(&mut self.gray, &mut self.scratch_gray);
-            core::mem::swap(&mut self.depth, &mut self.scratch_depth);
-            let (w, h) = self.size;
-            let gray = GrayView::packed(&self.scratch_gray, w, h)?;
-            let depth = ImageView::packed(&self.scratch_depth, w, h)?;
-            self.size = halve(&gray, &depth, &mut self.gray, &mut self.depth)?;
-        }
-        Ok(())
-    }
-}
+use crate::frame::{OwnedFrame, halve_frame};
 
 /// A source that halves every frame of `inner` `levels` times with the core's downsampling, as the
 /// firmware does with sensor frames: the port wrapper that puts a VGA source at the QVGA profile.
@@ -62,13 +20,13 @@ impl Halved {
 pub struct ProfileSource<S> {
     inner: S,
     levels: u8,
-    halved: Halved,
+    current: Option<OwnedFrame>,
 }
 
 impl<S> ProfileSource<S> {
     /// Wraps `inner`, halving its frames `levels` times (0 = pass frames through unchanged).
     pub fn new(inner: S, levels: u8) -> Self {
-        Self { inner, levels, halved: Halved::default() }
+        Self { inner, levels, current: None }
     }
 
     /// The wrapped source.
@@ -101,12 +59,8 @@ where
         if self.levels == 0 {
             return Ok(Some(frame));
         }
-        self.halved.run(&frame, self.levels)?;
-        let (w, h) = self.halved.size;
-        let gray = GrayView::packed(&self.halved.gray, w, h)?;
-        let raw = ImageView::packed(&self.halved.depth, w, h)?;
-        let depth = DepthView::new(raw, frame.depth.depth_scale())?;
-        Ok(Some(RgbdFrame { timestamp_s: frame.timestamp_s, gray, depth }))
+        let halved = self.current.insert(halve_frame(&frame, self.levels)?);
+        Ok(Some(halved.view()?))
     }
 }
 

@@ -1,4 +1,4 @@
-//! Image decoding (colour to 8-bit gray, 16-bit depth), 2x downsampling, and the owned frame.
+//! Image decoding: colour to 8-bit gray, 16-bit depth.
 //!
 //! Gray conversion uses ITU-R BT.601 luma in OpenCV's fixed point,
 //! `Y = (4899 R + 9617 G + 1868 B + 8192) >> 14` (OpenCV's `COLOR_RGB2GRAY`, which the TUM tools and
@@ -9,45 +9,9 @@
 
 use std::path::Path;
 
-use ferroslam_core::frame::RgbdFrame;
-use ferroslam_core::image::{
-    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, downsample_depth_2x,
-    downsample_gray_2x,
-};
 use image::{DynamicImage, ImageFormat, ImageReader};
 
 use super::DatasetError;
-
-/// A decoded RGB-D frame that owns its pixels, at the processing profile's resolution.
-#[derive(Debug, Clone, PartialEq)]
-pub struct OwnedFrame {
-    /// Capture time in seconds: the colour image's timestamp on the recording's clock.
-    pub timestamp_s: f64,
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// 8-bit gray, row-major, `width * height` samples.
-    pub gray: Vec<u8>,
-    /// Raw depth, row-major, `width * height` samples; 0 means no reading.
-    pub depth: Vec<u16>,
-    /// Raw depth units per metre.
-    pub depth_scale: f32,
-}
-
-impl OwnedFrame {
-    /// The frame as the core's borrowed [`RgbdFrame`].
-    ///
-    /// # Errors
-    /// An [`ImageError`] when the buffers do not hold `width * height` samples or the depth scale is
-    /// not finite and positive (never for a frame from [`super::Dataset::load_frame`]).
-    pub fn view(&self) -> Result<RgbdFrame<'_>, ImageError> {
-        let gray = GrayView::packed(&self.gray, self.width, self.height)?;
-        let raw = ImageView::packed(&self.depth, self.width, self.height)?;
-        let depth = DepthView::new(raw, self.depth_scale)?;
-        Ok(RgbdFrame { timestamp_s: self.timestamp_s, gray, depth })
-    }
-}
 
 /// Opens and decodes an image, recognising its format from its content.
 fn decode(path: &Path) -> Result<(DynamicImage, Option<ImageFormat>), DatasetError> {
@@ -164,40 +128,6 @@ pub(crate) fn decode_depth(path: &Path, expected: (u32, u32)) -> Result<Vec<u16>
     }
 }
 
-/// Halves a packed `width` x `height` image `levels` times with `half` (a core 2x2 downsampler);
-/// returns the result and its size. `path` names the image in errors.
-pub(crate) fn downsample<P: Copy + Default>(
-    path: &Path,
-    mut data: Vec<P>,
-    (mut width, mut height): (usize, usize),
-    levels: u8,
-    half: impl Fn(&ImageView<'_, P>, &mut ImageViewMut<'_, P>) -> Result<(), ImageError>,
-) -> Result<(Vec<P>, (usize, usize)), DatasetError> {
-    let err = |source| DatasetError::Image { path: path.to_owned(), source };
-    for _ in 0..levels {
-        let (w2, h2) = (width / 2, height / 2);
-        let mut out = vec![P::default(); w2 * h2];
-        let src = ImageView::packed(&data, width, height).map_err(err)?;
-        let mut dst = ImageViewMut::packed(&mut out, w2, h2).map_err(err)?;
-        half(&src, &mut dst).map_err(err)?;
-        (data, width, height) = (out, w2, h2);
-    }
-    Ok((data, (width, height)))
-}
-
-/// The core's gray downsampler, in the shape [`downsample`] takes.
-pub(crate) fn half_gray(src: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Result<(), ImageError> {
-    downsample_gray_2x(src, dst)
-}
-
-/// The core's depth downsampler, in the shape [`downsample`] takes.
-pub(crate) fn half_depth(
-    src: &ImageView<'_, u16>,
-    dst: &mut ImageViewMut<'_, u16>,
-) -> Result<(), ImageError> {
-    downsample_depth_2x(src, dst)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -210,23 +140,5 @@ mod tests {
         assert_eq!((luma(255, 0, 0), luma(0, 255, 0), luma(0, 0, 255)), (76, 150, 29));
         assert_eq!(luma(65535, 65535, 65535), 65535);
         assert_eq!((to_u8(65535), to_u8(0), to_u8(257 * 100)), (255, 0, 100));
-    }
-
-    #[test]
-    fn view_checks_buffer_sizes() {
-        let f = OwnedFrame {
-            timestamp_s: 1.5,
-            width: 2,
-            height: 2,
-            gray: vec![1, 2, 3, 4],
-            depth: vec![0, 1000, 2000, 3000],
-            depth_scale: 1000.0,
-        };
-        let v = f.view().unwrap();
-        assert_eq!(v.timestamp_s, 1.5);
-        assert_eq!(v.depth.depth_m(1, 1), Some(3.0));
-        let short = OwnedFrame { depth: vec![0; 3], ..f.clone() };
-        assert!(short.view().is_err());
-        assert!(OwnedFrame { depth_scale: f32::NAN, ..f }.view().is_err());
     }
 }

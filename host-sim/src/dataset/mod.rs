@@ -36,8 +36,9 @@ use std::path::{Path, PathBuf};
 
 use ferroslam_core::config::{Config, Profile, Tunables};
 
+pub use crate::frame::OwnedFrame;
+use crate::frame::halve_frame;
 pub use calibration::Calibration;
-pub use decode::OwnedFrame;
 pub use error::DatasetError;
 pub use reader::DatasetReader;
 
@@ -280,20 +281,20 @@ impl Dataset {
         let size = (self.sensor.width, self.sensor.height);
         let gray = decode::decode_gray(&frame.rgb_path, size)?;
         let depth = decode::decode_depth(&frame.depth_path, size)?;
-        let full = (size.0 as usize, size.1 as usize);
-        let levels = self.profile.downsample_levels;
-        let (gray, (width, height)) =
-            decode::downsample(&frame.rgb_path, gray, full, levels, decode::half_gray)?;
-        let (depth, _) =
-            decode::downsample(&frame.depth_path, depth, full, levels, decode::half_depth)?;
-        Ok(OwnedFrame {
+        let full = OwnedFrame {
             timestamp_s: frame.rgb_timestamp_s,
-            width,
-            height,
+            width: size.0 as usize,
+            height: size.1 as usize,
             gray,
             depth,
             depth_scale: self.sensor.depth_scale,
-        })
+        };
+        let levels = self.profile.downsample_levels;
+        if levels == 0 {
+            return Ok(full);
+        }
+        let err = |source| DatasetError::Image { path: frame.rgb_path.clone(), source };
+        halve_frame(&full.view().map_err(err)?, levels).map_err(err)
     }
 
     /// Moves the dataset into a reader that decodes up to `read_ahead` frames ahead of the caller

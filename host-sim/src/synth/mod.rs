@@ -266,35 +266,8 @@ impl SynthIntrinsics {
     }
 }
 
-/// One rendered frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SynthFrame {
-    /// Capture time, seconds (`index / 30`).
-    pub timestamp_s: f64,
-    /// Width, pixels.
-    pub width: usize,
-    /// Height, pixels.
-    pub height: usize,
-    /// Row-major 8-bit gray, `width * height` pixels.
-    pub gray: Vec<u8>,
-    /// Row-major raw depth, `width * height` samples; `raw / depth_scale` metres, 0 = no reading.
-    pub depth: Vec<u16>,
-    /// Raw depth units per metre (5000).
-    pub depth_scale: f64,
-}
-
-impl SynthFrame {
-    /// Depth at pixel `(x, y)` in metres, `None` outside the image or without a reading.
-    pub fn depth_m(&self, x: usize, y: usize) -> Option<f64> {
-        if x >= self.width || y >= self.height {
-            return None;
-        }
-        match self.depth.get(y * self.width + x) {
-            Some(0) | None => None,
-            Some(&d) => Some(f64::from(d) / self.depth_scale),
-        }
-    }
-}
+/// One rendered frame (depth scale [`DEPTH_SCALE`], timestamps `index / 30` s).
+pub type SynthFrame = crate::frame::OwnedFrame;
 
 /// The synthetic sequence: options, camera, room and path. Frames are rendered on demand.
 #[derive(Debug, Clone)]
@@ -376,14 +349,7 @@ impl SyntheticSequence {
     /// [`SynthError::FrameOutOfRange`] past the end; [`SynthError::RenderThread`] if a worker
     /// thread panicked.
     pub fn render(&self, index: usize) -> Result<SynthFrame, SynthError> {
-        let mut frame = SynthFrame {
-            timestamp_s: 0.0,
-            width: 0,
-            height: 0,
-            gray: Vec::new(),
-            depth: Vec::new(),
-            depth_scale: DEPTH_SCALE,
-        };
+        let mut frame = SynthFrame::empty(DEPTH_SCALE as f32);
         self.render_into(index, &mut frame)?;
         Ok(frame)
     }
@@ -398,7 +364,7 @@ impl SyntheticSequence {
         frame.timestamp_s = timestamp_s;
         frame.width = self.opts.width;
         frame.height = self.opts.height;
-        frame.depth_scale = DEPTH_SCALE;
+        frame.depth_scale = DEPTH_SCALE as f32;
         render::render_frame(self, index, frame)
     }
 

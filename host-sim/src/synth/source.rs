@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
-use ferroslam_core::image::{DepthView, GrayView, ImageView};
 
 use super::{DEPTH_SCALE, SynthError, SynthFrame, SyntheticSequence};
 
@@ -20,14 +19,7 @@ pub struct SynthSource {
 impl SynthSource {
     /// A source starting at frame 0.
     pub fn new(sequence: SyntheticSequence) -> Self {
-        let frame = SynthFrame {
-            timestamp_s: 0.0,
-            width: 0,
-            height: 0,
-            gray: Vec::new(),
-            depth: Vec::new(),
-            depth_scale: DEPTH_SCALE,
-        };
+        let frame = SynthFrame::empty(DEPTH_SCALE as f32);
         Self { sequence, next: 0, frame }
     }
 
@@ -39,19 +31,6 @@ impl SynthSource {
     /// Index of the frame the next call to `next_frame` renders.
     pub fn position(&self) -> usize {
         self.next
-    }
-}
-
-impl SynthFrame {
-    /// The frame as the core sees it, borrowing this frame's buffers.
-    ///
-    /// # Errors
-    /// [`SynthError::Image`] if the buffers do not match the size (not for rendered frames).
-    pub fn as_rgbd(&self) -> Result<RgbdFrame<'_>, SynthError> {
-        let gray = GrayView::packed(&self.gray, self.width, self.height)?;
-        let raw = ImageView::packed(&self.depth, self.width, self.height)?;
-        let depth = DepthView::new(raw, self.depth_scale as f32)?;
-        Ok(RgbdFrame { timestamp_s: self.timestamp_s, gray, depth })
     }
 }
 
@@ -67,7 +46,7 @@ impl FrameSource for SynthSource {
         let index = self.next;
         self.next += 1;
         self.sequence.render_into(index, &mut self.frame)?;
-        self.frame.as_rgbd().map(Some)
+        Ok(Some(self.frame.view()?))
     }
 }
 

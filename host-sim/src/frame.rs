@@ -1,0 +1,144 @@
+//! [`OwnedFrame`]: an RGB-D frame that owns its pixels, as the dataset reader decodes it and the
+//! synthetic renderer draws it; [`OwnedFrame::view`] lends it to the core as an [`RgbdFrame`].
+
+use ferroslam_core::frame::RgbdFrame;
+use ferroslam_core::image::{
+    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, downsample_depth_2x,
+    downsample_gray_2x,
+};
+
+/// An RGB-D frame that owns its pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnedFrame {
+    /// Capture time in seconds on the recording's clock (a dataset's colour timestamp).
+    pub timestamp_s: f64,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// 8-bit gray, row-major, `width * height` samples.
+    pub gray: Vec<u8>,
+    /// Raw depth, row-major, `width * height` samples; `raw / depth_scale` metres, 0 = no reading.
+    pub depth: Vec<u16>,
+    /// Raw depth units per metre.
+    pub depth_scale: f32,
+}
+
+impl OwnedFrame {
+    /// A 0x0 frame at time 0, to be filled by a renderer or decoder that reuses buffers.
+    pub fn empty(depth_scale: f32) -> Self {
+        Self {
+            timestamp_s: 0.0,
+            width: 0,
+            height: 0,
+            gray: Vec::new(),
+            depth: Vec::new(),
+            depth_scale,
+        }
+    }
+
+    /// The frame as the core's borrowed [`RgbdFrame`].
+    ///
+    /// # Errors
+    /// An [`ImageError`] when the buffers do not hold `width * height` samples or the depth scale is
+    /// not finite and positive (never for a decoded or rendered frame).
+    pub fn view(&self) -> Result<RgbdFrame<'_>, ImageError> {
+        let gray = GrayView::packed(&self.gray, self.width, self.height)?;
+        let raw = ImageView::packed(&self.depth, self.width, self.height)?;
+        let depth = DepthView::new(raw, self.depth_scale)?;
+        Ok(RgbdFrame { timestamp_s: self.timestamp_s, gray, depth })
+    }
+
+    /// Depth at pixel `(x, y)` in metres, `None` outside the image or without a reading.
+    pub fn depth_m(&self, x: usize, y: usize) -> Option<f64> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        match self.depth.get(y * self.width + x) {
+            Some(0) | None => None,
+            Some(&d) => Some(f64::from(d) / f64::from(self.depth_scale)),
+        }
+    }
+}
+
+/// `frame` halved `levels` times by the core's 2x2 downsamplers (gray: rounded mean; depth: a real
+/// sample of each block, never a blend across an edge), as the firmware brings sensor frames to
+/// the processing profile. `levels == 0` copies the frame.
+///
+/// # Errors
+/// An [`ImageError`] when a level would be empty (a side shorter than 2 pixels).
+pub fn halve_frame(frame: &RgbdFrame<'_>, levels: u8) -> Result<OwnedFrame, ImageError> {
+    let (gray, depth) = (frame.gray, frame.depth.raw());
+    let mut out = if levels == 0 {
+        OwnedFrame {
+            timestamp_s: frame.timestamp_s,
+            width: gray.width(),
+            height: gray.height(),
+            gray: gray.rows().flatten().copied().collect(),
+            depth: depth.rows().flatten().copied().collect(),
+            depth_scale: frame.depth.depth_scale(),
+        }
+    } else {
+        halve_once(frame)?
+    };
+    for _ in 1..levels {
+        let next = halve_once(&out.view()?)?;
+        out = next;
+    }
+    Ok(out)
+}
+
+/// `frame` halved once.
+fn halve_once(frame: &RgbdFrame<'_>) -> Result<OwnedFrame, ImageError> {
+    let (width, height) = (frame.gray.width() / 2, frame.gray.height() / 2);
+    let mut gray = vec![0; width * height];
+    let mut depth = vec![0; width * height];
+    downsample_gray_2x(&frame.gray, &mut GrayViewMut::packed(&mut gray, width, height)?)?;
+    downsample_depth_2x(&frame.depth.raw(), &mut ImageViewMut::packed(&mut depth, width, height)?)?;
+    Ok(OwnedFrame {
+        timestamp_s: frame.timestamp_s,
+        width,
+        height,
+        gray,
+        depth,
+        depth_scale: frame.depth.depth_scale(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn view_checks_buffer_sizes() {
+        let f = OwnedFrame {
+            timestamp_s: 1.5,
+            width: 2,
+            height: 2,
+            gray: vec![1, 2, 3, 4],
+            depth: vec![0, 1000, 2000, 3000],
+            depth_scale: 1000.0,
+        };
+        let v = f.view().unwrap();
+        assert_eq!(v.timestamp_s, 1.5);
+        assert_eq!(v.depth.depth_m(1, 1), Some(3.0));
+        let short = OwnedFrame { depth: vec![0; 3], ..f.clone() };
+        assert!(short.view().is_err());
+        assert!(OwnedFrame { depth_scale: f32::NAN, ..f }.view().is_err());
+    }
+
+    #[test]
+    fn halving_twice_gives_a_quarter_size_frame_of_real_samples() {
+        let gray: Vec<u8> = (0..64).map(|i| i as u8).collect();
+        let depth: Vec<u16> =
+            (0..64).map(|i| if i % 3 == 0 { 0 } else { 1000 + i as u16 }).collect();
+        let f =
+            OwnedFrame { timestamp_s: 2.0, width: 8, height: 8, gray, depth, depth_scale: 5000.0 };
+        let q = halve_frame(&f.view().unwrap(), 2).unwrap();
+        assert_eq!((q.width, q.height, q.timestamp_s, q.depth_scale), (2, 2, 2.0, 5000.0));
+        assert!(q.depth.iter().all(|d| f.depth.contains(d)), "depth samples are never blended");
+        assert_eq!(halve_frame(&f.view().unwrap(), 0).unwrap(), f);
+        let tiny = OwnedFrame { width: 1, height: 1, gray: vec![0], depth: vec![0], ..f };
+        assert!(halve_frame(&tiny.view().unwrap(), 1).is_err());
+    }
+}
