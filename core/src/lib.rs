@@ -8,6 +8,9 @@
 //!   paper's Eq. 1-2 with Jacobians, depth back-projection, Horn/Umeyama alignment.
 //! - [`image`]: borrowed image views with stride, 2x downsampling, the image variation `v_m` and the
 //!   total variation `W(I)` of the paper's Eq. 3.
+//! - [`features`]: the Fast-Hessian detector and grid bucketing (issue 3, in progress).
+//! - [`matching`]: affine region matching (issue 3, in progress).
+//! - [`tracking`]: robust pose estimation (issue 3, in progress).
 //! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
 //!   recorded datasets and the synthetic renderer implement.
 //!
@@ -19,6 +22,9 @@
 #![deny(missing_docs)]
 
 pub mod config;
+pub mod features;
 pub mod frame;
 pub mod geometry;
 pub mod image;
+pub mod matching;
+pub mod tracking;
