@@ -1,1 +1,172 @@
-//! Fast-Hessian features: box-filter det(H) on an integral image, non-maximum suppression, grid bucketing (being written).
+//! Fast-Hessian features (SURF's detector): box-filter det(H) on an integral image, 3x3x3
+//! non-maximum suppression over position and scale, sub-pixel and sub-scale refinement, and grid
+//! bucketing so that the kept features spread evenly over the frame.
+//!
+//! # Pipeline
+//!
+//! 1. A rolling integral image (u32) of the last [`INTEGRAL_RING_ROWS`] (52) image rows: each image
+//!    row is added once, so a full-frame integral image (307 KB at 320x240) is never held. This is
+//!    the strip scheme taken to strips of one row: the ring keeps the margin rows (the largest
+//!    filter's 2 x 25 rows plus one) between steps, so no margin is ever recomputed, and the ring
+//!    holds values equal to the full-frame integral image's.
+//! 2. For every octave, the box-filter second derivatives `Dxx`, `Dyy`, `Dxy` of four filter sizes
+//!    ([`OCTAVE_FILTER_SIZES`]: 9/15/21/27 sampled every pixel, then 15/27/39/51 every second pixel),
+//!    each normalized by the filter area, give `det(H) = Dxx*Dyy - (0.9*Dxy)^2`. A response row is
+//!    computed as soon as the integral rows it needs are in the ring; three response rows per layer
+//!    are kept (a ring too), enough for non-maximum suppression one row behind.
+//! 3. A sample of a middle layer is a candidate when its response exceeds the threshold and all 26
+//!    neighbours in position and scale; a 3D quadratic (Taylor) fit refines position and scale, and
+//!    the candidate is dropped if any offset exceeds half a sample.
+//! 4. Candidates go into a grid of cells; each cell keeps its strongest ones (see
+//!    [`HessianParams::per_cell_cap`] for the selection rule).
+//!
+//! The result is bit-identical to a full-frame computation (the unit tests check this against a
+//! full-frame reference): box sums are exact integers and every float is computed by the same
+//! expressions in the same order, with `+ - * /` only (no fused multiply-add).
+//!
+//! # Memory
+//!
+//! [`HessianDetector<W>`] owns all scratch; place it in a `static` or initialize it in place.
+//! Its size is `4*W*(INTEGRAL_RING_ROWS + 1)` bytes of integral rows, `4*W*3*4*1.5` bytes of
+//! response rows and `16*MAX_GRID_CELLS*MAX_PER_CELL` bytes of cell candidates:
+//! [`QvgaHessianDetector`] (W = 320) is 103,272 bytes (about 101 KiB), [`VgaHessianDetector`]
+//! (W = 640) 194,152 bytes. The output vector (`MAX_FEATURES_PER_FRAME` x 20 bytes = 10,240 bytes)
+//! belongs to the caller.
+
+mod bucket;
+mod filter;
+mod hessian;
+
+#[cfg(test)]
+mod tests;
+
+pub use bucket::{MAX_GRID_CELLS, MAX_PER_CELL};
+pub use filter::{INTEGRAL_RING_ROWS, OCTAVE_FILTER_SIZES, OCTAVE_STEPS};
+pub use hessian::{HessianDetector, QvgaHessianDetector, VgaHessianDetector};
+
+use crate::config::capacity::MAX_FEATURES_PER_FRAME;
+use core::fmt;
+
+/// The features of one frame, as [`HessianDetector::detect`] returns them.
+pub type FeatureVec = heapless::Vec<Feature, MAX_FEATURES_PER_FRAME>;
+
+/// One detected interest point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Feature {
+    /// Column, in pixels; pixel centres are at integers, 0 at the left pixel's centre.
+    pub x: f32,
+    /// Row, in pixels; pixel centres are at integers, 0 at the top pixel's centre.
+    pub y: f32,
+    /// Scale as SURF's Gaussian sigma, in pixels: `1.2 * filter_size / 9` at the refined filter
+    /// size. For a Gaussian blob of standard deviation `s` it is about `0.75 * s` (measured: the
+    /// box filters are wider than the Gaussians this rule assigns them).
+    pub scale: f32,
+    /// det(H) of the area-normalized box filters at the detection sample, in (gray levels)^2.
+    pub response: f32,
+    /// The sign of the Laplacian (trace of H): `true` for a dark blob on a bright background,
+    /// `false` for a bright blob on a dark background. Only features of equal sign can match.
+    pub laplacian_positive: bool,
+}
+
+/// Why detection could not run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum FeatureError {
+    /// The image is wider than the detector's workspace.
+    ImageTooWide {
+        /// Width of the image, in pixels.
+        width: usize,
+        /// Widest image the detector accepts, in pixels.
+        max: usize,
+    },
+    /// A [`HessianParams`] field is out of its documented range.
+    InvalidParams {
+        /// Name of the offending field.
+        field: &'static str,
+    },
+}
+
+impl fmt::Display for FeatureError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::ImageTooWide { width, max } => {
+                write!(f, "image is {width} pixels wide, the detector accepts at most {max}")
+            }
+            Self::InvalidParams { field } => {
+                write!(f, "detector parameter `{field}` is out of range")
+            }
+        }
+    }
+}
+
+impl core::error::Error for FeatureError {}
+
+/// Run-time settings of the Fast-Hessian detector and its grid bucketing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct HessianParams {
+    /// Minimum det(H) of a feature, in (gray levels)^2 with the box filters normalized by their
+    /// area (OpenCV's `hessianThreshold` scale). Finite and `>= 0`. Default 100.
+    pub threshold: f32,
+    /// Octaves scanned: 1 (filter sizes 9-27, sigma 1.6-3.2 px) or 2 (adds 15-51 every second
+    /// pixel, sigma up to 6.0 px). Default 2.
+    pub octaves: u8,
+    /// Grid columns for bucketing, `>= 1`. Default 8.
+    pub grid_cols: u8,
+    /// Grid rows for bucketing, `>= 1`; `grid_cols * grid_rows <= MAX_GRID_CELLS`. Default 6.
+    pub grid_rows: u8,
+    /// Most features kept per grid cell, `1..=MAX_PER_CELL`. Default 12.
+    ///
+    /// Selection rule: every cell keeps its `per_cell_cap` strongest candidates; then features are
+    /// taken in rounds, round `k` taking each cell's `k`-th strongest, until `max_features` is
+    /// reached. A cell with few candidates drops out of later rounds, so its unused share goes to
+    /// the other cells (never beyond their cap). When the last round does not fit, its strongest
+    /// candidates win. Ties are broken by response, then row, column and scale (smaller first).
+    pub per_cell_cap: u8,
+    /// Total features kept, `1..=MAX_FEATURES_PER_FRAME`. Default 512.
+    pub max_features: u16,
+}
+
+impl Default for HessianParams {
+    fn default() -> Self {
+        Self {
+            threshold: 100.0,
+            octaves: 2,
+            grid_cols: 8,
+            grid_rows: 6,
+            per_cell_cap: 12,
+            max_features: MAX_FEATURES_PER_FRAME as u16,
+        }
+    }
+}
+
+impl HessianParams {
+    /// Checks every field against its documented range.
+    ///
+    /// # Errors
+    /// [`FeatureError::InvalidParams`] naming the first offending field.
+    pub fn validate(&self) -> Result<(), FeatureError> {
+        let bad = |field| Err(FeatureError::InvalidParams { field });
+        if !self.threshold.is_finite() || self.threshold < 0.0 {
+            return bad("threshold");
+        }
+        if self.octaves == 0 || usize::from(self.octaves) > OCTAVE_FILTER_SIZES.len() {
+            return bad("octaves");
+        }
+        if self.grid_cols == 0 || self.grid_rows == 0 {
+            return bad("grid_cols/grid_rows");
+        }
+        if usize::from(self.grid_cols) * usize::from(self.grid_rows) > MAX_GRID_CELLS {
+            return bad("grid_cols/grid_rows");
+        }
+        if self.per_cell_cap == 0 || usize::from(self.per_cell_cap) > MAX_PER_CELL {
+            return bad("per_cell_cap");
+        }
+        if self.max_features == 0 || usize::from(self.max_features) > MAX_FEATURES_PER_FRAME {
+            return bad("max_features");
+        }
+        Ok(())
+    }
+}

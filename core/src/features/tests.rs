@@ -1,0 +1,373 @@
+//! Known-answer tests of the Fast-Hessian detector, and the full-frame reference that the
+//! strip-wise detector must reproduce bit for bit.
+
+#![allow(clippy::needless_range_loop)] // index loops read clearer in the reference
+
+extern crate std;
+
+use super::bucket::{GridBuckets, rank};
+use super::filter::{IntegralRows, OCTAVES, Taps};
+use super::hessian::{candidate, gather};
+use super::*;
+use crate::image::GrayView;
+use std::boxed::Box;
+use std::vec;
+use std::vec::Vec;
+
+/// A full-frame integral image, as the reference computes it.
+struct FullIntegral {
+    rows: Vec<Vec<u32>>,
+}
+
+impl FullIntegral {
+    fn new(img: &GrayView<'_>) -> Self {
+        let (w, h) = img.size();
+        let mut rows = vec![vec![0u32; w]; h];
+        for y in 0..h {
+            let mut acc = 0u32;
+            for x in 0..w {
+                acc += u32::from(img.get(x, y).unwrap());
+                rows[y][x] = acc + if y > 0 { rows[y - 1][x] } else { 0 };
+            }
+        }
+        Self { rows }
+    }
+}
+
+impl IntegralRows for FullIntegral {
+    fn row(&self, y: usize) -> &[u32] {
+        &self.rows[y]
+    }
+}
+
+/// Every candidate of a full-frame computation: all responses of all layers first, then NMS.
+fn reference_candidates(img: &GrayView<'_>, params: &HessianParams) -> Vec<Feature> {
+    let (w, h) = img.size();
+    let ii = FullIntegral::new(img);
+    let mut out = Vec::new();
+    for oct in OCTAVES.iter().take(usize::from(params.octaves)) {
+        let (s, half, first) = (oct.step, oct.half(), oct.first_sample());
+        if w < half + 1 + first || h < half + 1 + first {
+            continue;
+        }
+        let (last_x, last_y) = ((w - 1 - half) / s * s, (h - 1 - half) / s * s);
+        // responses[layer][y / s][x / s]
+        let mut resp = vec![vec![vec![0f32; w / s + 1]; h / s + 1]; 4];
+        for (layer, &size) in oct.sizes.iter().enumerate() {
+            for y in (first..=last_y).step_by(s) {
+                let taps = Taps::new(&ii, size, y);
+                for x in (first..=last_x).step_by(s) {
+                    resp[layer][y / s][x / s] = taps.response(x);
+                }
+            }
+        }
+        for yc in (first + s..last_y).step_by(s) {
+            for m in 1..3 {
+                let j = yc / s;
+                let rows = |l: usize| [&resp[l][j - 1][..], &resp[l][j][..], &resp[l][j + 1][..]];
+                let planes = [rows(m - 1), rows(m), rows(m + 1)];
+                for i in first / s + 1..last_x / s {
+                    let cube = gather(&planes, i).unwrap();
+                    let size = oct.sizes[m];
+                    if let Some(f) = candidate(&cube, params.threshold, oct, i, yc, size) {
+                        let lap = Taps::new(&ii, size, yc).laplacian_positive(i * s);
+                        out.push(Feature { laplacian_positive: lap, ..f });
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+fn strip_candidates(img: &GrayView<'_>, params: &HessianParams) -> Vec<Feature> {
+    let mut det = Box::new(VgaHessianDetector::new());
+    let mut out = Vec::new();
+    det.detect_candidates(img, params, &mut |f| out.push(f)).unwrap();
+    out
+}
+
+fn sorted(mut v: Vec<Feature>) -> Vec<Feature> {
+    v.sort_by(rank);
+    v
+}
+
+/// A gray image with Gaussian blobs `(x, y, sigma, amplitude)` on a 128 background.
+fn blobs(w: usize, h: usize, spots: &[(f32, f32, f32, f32)]) -> Vec<u8> {
+    let mut img = vec![0u8; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let mut v = 128.0f32;
+            for &(bx, by, sigma, amp) in spots {
+                let d2 = (x as f32 - bx).powi(2) + (y as f32 - by).powi(2);
+                v += amp * (-d2 / (2.0 * sigma * sigma)).exp();
+            }
+            img[y * w + x] = v.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    img
+}
+
+/// Deterministic texture: random 4x4-pixel blocks (an LCG), everywhere.
+fn texture(w: usize, h: usize, seed: u32) -> Vec<u8> {
+    let mut state = seed;
+    let blocks: Vec<u8> = (0..(w / 4 + 1) * (h / 4 + 1))
+        .map(|_| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 24) as u8
+        })
+        .collect();
+    (0..w * h).map(|k| blocks[(k / w / 4) * (w / 4 + 1) + (k % w) / 4]).collect()
+}
+
+/// The workspace is built at compile time, so it can live in a `static` (no stack copy).
+static _CONST_BUILT: QvgaHessianDetector = QvgaHessianDetector::new();
+
+#[test]
+fn workspace_sizes_are_as_documented() {
+    assert_eq!(core::mem::size_of::<QvgaHessianDetector>(), 103_272);
+    assert_eq!(core::mem::size_of::<VgaHessianDetector>(), 194_152);
+}
+
+/// Measured: det(H) of SURF's box filters peaks on a Gaussian blob of standard deviation `s` at a
+/// filter size whose SURF sigma `1.2 * size / 9` is about `0.71..0.77 * s` (the 9x9 box acts like
+/// a Gaussian of sigma ~1.6, not 1.2). A perfect Gaussian DoH would give 1.
+const BLOB_SIGMA_RATIO: f32 = 0.75;
+
+#[test]
+fn gaussian_blobs_are_found_at_their_position_scale_and_sign() {
+    let (w, h) = (160, 180);
+    let spots = [
+        (40.3, 30.6, 2.4, 90.0),
+        (110.0, 35.0, 3.0, -90.0),
+        (45.0, 85.0, 4.4, -80.0),
+        (115.5, 80.2, 5.2, 80.0),
+        (80.0, 140.0, 7.0, -80.0),
+    ];
+    let data = blobs(w, h, &spots);
+    let img = GrayView::packed(&data, w, h).unwrap();
+    let mut det = Box::new(QvgaHessianDetector::new());
+    let mut out = FeatureVec::new();
+    det.detect(&img, &HessianParams::default(), &mut out).unwrap();
+    for &(bx, by, sigma, amp) in &spots {
+        let near: Vec<&Feature> =
+            out.iter().filter(|f| (f.x - bx).abs() < 3.0 && (f.y - by).abs() < 3.0).collect();
+        let best = near.iter().max_by(|a, b| a.response.total_cmp(&b.response));
+        let f = best.unwrap_or_else(|| panic!("no feature near blob ({bx}, {by}); got {out:?}"));
+        std::println!("blob ({bx}, {by}, sigma {sigma}): {f:?}");
+        assert!(
+            (f.x - bx).abs() <= 0.5 && (f.y - by).abs() <= 0.5,
+            "position {f:?} vs ({bx}, {by})"
+        );
+        // SURF's sigma (1.2 * size / 9) of the peak is BLOB_SIGMA_RATIO times the blob's sigma.
+        let expected = BLOB_SIGMA_RATIO * sigma;
+        assert!((f.scale / expected - 1.0).abs() <= 0.2, "scale {} vs {expected}", f.scale);
+        // A bright blob has negative second derivatives: the Laplacian is negative.
+        assert_eq!(f.laplacian_positive, amp < 0.0);
+    }
+}
+
+#[test]
+fn a_flat_image_has_no_features() {
+    let data = vec![77u8; 320 * 240];
+    let img = GrayView::packed(&data, 320, 240).unwrap();
+    let mut det = Box::new(QvgaHessianDetector::new());
+    let mut out = FeatureVec::new();
+    det.detect(&img, &HessianParams::default(), &mut out).unwrap();
+    assert!(out.is_empty());
+}
+
+#[test]
+fn strip_detector_matches_the_full_frame_reference() {
+    let images = [
+        (320, 240, texture(320, 240, 1)),
+        (101, 77, texture(101, 77, 7)),
+        (
+            160,
+            120,
+            blobs(
+                160,
+                120,
+                &[(40.3, 30.6, 2.4, 90.0), (110.0, 35.0, 3.0, -90.0), (80.0, 80.0, 5.0, 70.0)],
+            ),
+        ),
+    ];
+    for (w, h, data) in &images {
+        let img = GrayView::packed(data, *w, *h).unwrap();
+        for octaves in [1, 2] {
+            let params = HessianParams { octaves, threshold: 50.0, ..HessianParams::default() };
+            let strip = sorted(strip_candidates(&img, &params));
+            let full = sorted(reference_candidates(&img, &params));
+            assert!(!full.is_empty());
+            // Bit-exact equality, including the float fields.
+            let bits = |v: &[Feature]| {
+                v.iter()
+                    .map(|f| {
+                        (
+                            f.x.to_bits(),
+                            f.y.to_bits(),
+                            f.scale.to_bits(),
+                            f.response.to_bits(),
+                            f.laplacian_positive,
+                        )
+                    })
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&strip), bits(&full), "{w}x{h}, {octaves} octaves");
+            // And the bucketed selections agree too.
+            let mut buckets = Box::new(GridBuckets::new());
+            buckets.reset(&params, *w, *h);
+            full.iter().for_each(|f| buckets.insert(f));
+            let mut expected = FeatureVec::new();
+            buckets.select(usize::from(params.max_features), &mut expected).unwrap();
+            let mut det = Box::new(VgaHessianDetector::new());
+            let mut got = FeatureVec::new();
+            det.detect(&img, &params, &mut got).unwrap();
+            assert_eq!(bits(&got), bits(&expected));
+        }
+    }
+}
+
+#[test]
+fn bucketing_spreads_features_over_every_cell_within_the_caps() {
+    let (w, h) = (320, 240);
+    let data = texture(w, h, 3);
+    let img = GrayView::packed(&data, w, h).unwrap();
+    let mut det = Box::new(QvgaHessianDetector::new());
+    for (cap, max) in [(12u8, 512u16), (4, 512), (12, 100)] {
+        let params = HessianParams {
+            per_cell_cap: cap,
+            max_features: max,
+            threshold: 20.0,
+            ..HessianParams::default()
+        };
+        let mut out = FeatureVec::new();
+        det.detect(&img, &params, &mut out).unwrap();
+        let mut per_cell = [0usize; 48];
+        for f in &out {
+            let (cx, cy) = (((f.x + 0.5) as usize) * 8 / w, ((f.y + 0.5) as usize) * 6 / h);
+            per_cell[cy * 8 + cx] += 1;
+        }
+        std::println!("cap {cap} max {max}: {} features, per cell {per_cell:?}", out.len());
+        let mut cands = [0usize; 48];
+        det.detect_candidates(&img, &params, &mut |f| {
+            cands[((f.y + 0.5) as usize) * 6 / h * 8 + ((f.x + 0.5) as usize) * 8 / w] += 1;
+        })
+        .unwrap();
+        let available: usize = cands.iter().map(|&n| n.min(usize::from(cap))).sum();
+        assert!(per_cell.iter().all(|&n| n >= 1 && n <= usize::from(cap)));
+        assert_eq!(out.len(), usize::from(max).min(available));
+        // A cell below its cap got every candidate it had (the budget was not the limit).
+        if out.len() < usize::from(max) {
+            assert!(per_cell.iter().zip(&cands).all(|(&n, &c)| n == c.min(usize::from(cap))));
+        }
+        // Within a cell the features come strongest first, and no duplicates.
+        let sorted_out = sorted(out.to_vec());
+        assert!(sorted_out.windows(2).all(|p| rank(&p[0], &p[1]).is_lt()));
+    }
+}
+
+#[test]
+fn tiny_and_odd_images_do_not_panic() {
+    let mut det = Box::new(QvgaHessianDetector::new());
+    let mut out = FeatureVec::new();
+    for (w, h) in [
+        (1, 1),
+        (2, 3),
+        (9, 9),
+        (27, 27),
+        (28, 40),
+        (40, 28),
+        (52, 52),
+        (53, 61),
+        (320, 1),
+        (1, 240),
+        (33, 17),
+    ] {
+        let data = texture(w, h, 5);
+        let img = GrayView::packed(&data, w, h).unwrap();
+        det.detect(&img, &HessianParams::default(), &mut out).unwrap();
+        if w < 30 || h < 30 {
+            assert!(out.is_empty(), "{w}x{h}");
+        }
+        let mut n = 0;
+        det.detect_candidates(
+            &img,
+            &HessianParams { threshold: 0.0, ..HessianParams::default() },
+            &mut |_| n += 1,
+        )
+        .unwrap();
+        assert_eq!(
+            n,
+            reference_candidates(
+                &img,
+                &HessianParams { threshold: 0.0, ..HessianParams::default() }
+            )
+            .len()
+        );
+    }
+}
+
+#[test]
+fn a_stride_padded_view_gives_the_same_features() {
+    let (w, h, stride) = (150, 110, 157);
+    let packed = texture(w, h, 9);
+    let mut padded = vec![255u8; stride * h];
+    for y in 0..h {
+        padded[y * stride..y * stride + w].copy_from_slice(&packed[y * w..(y + 1) * w]);
+        padded[y * stride + w..(y + 1) * stride].fill((y * 37) as u8);
+    }
+    let a = GrayView::packed(&packed, w, h).unwrap();
+    let b = GrayView::new(&padded, w, h, stride).unwrap();
+    let mut det = Box::new(QvgaHessianDetector::new());
+    let (mut fa, mut fb) = (FeatureVec::new(), FeatureVec::new());
+    det.detect(&a, &HessianParams::default(), &mut fa).unwrap();
+    det.detect(&b, &HessianParams::default(), &mut fb).unwrap();
+    assert!(!fa.is_empty());
+    assert_eq!(fa, fb);
+}
+
+#[test]
+fn bad_input_is_an_error_value() {
+    let data = vec![0u8; 65 * 10];
+    let img = GrayView::packed(&data, 65, 10).unwrap();
+    let mut det = Box::new(HessianDetector::<64>::new());
+    let mut out = FeatureVec::new();
+    assert_eq!(
+        det.detect(&img, &HessianParams::default(), &mut out),
+        Err(FeatureError::ImageTooWide { width: 65, max: 64 })
+    );
+    let bad = [
+        HessianParams { threshold: f32::NAN, ..HessianParams::default() },
+        HessianParams { threshold: -1.0, ..HessianParams::default() },
+        HessianParams { octaves: 0, ..HessianParams::default() },
+        HessianParams { octaves: 3, ..HessianParams::default() },
+        HessianParams { grid_cols: 9, grid_rows: 8, ..HessianParams::default() },
+        HessianParams { per_cell_cap: 13, ..HessianParams::default() },
+        HessianParams { max_features: 513, ..HessianParams::default() },
+    ];
+    let small = GrayView::packed(&data, 64, 10).unwrap();
+    for p in &bad {
+        assert!(
+            matches!(det.detect(&small, p, &mut out), Err(FeatureError::InvalidParams { .. })),
+            "{p:?}"
+        );
+    }
+    assert!(HessianParams::default().validate().is_ok());
+}
+
+#[test]
+fn detection_is_repeatable_on_a_reused_workspace() {
+    let (w, h) = (200, 150);
+    let a = texture(w, h, 11);
+    let b = blobs(w, h, &[(100.0, 75.0, 3.0, 90.0)]);
+    let mut det = Box::new(QvgaHessianDetector::new());
+    let mut first = FeatureVec::new();
+    let mut again = FeatureVec::new();
+    let mut other = FeatureVec::new();
+    let p = HessianParams::default();
+    det.detect(&GrayView::packed(&a, w, h).unwrap(), &p, &mut first).unwrap();
+    det.detect(&GrayView::packed(&b, w, h).unwrap(), &p, &mut other).unwrap();
+    det.detect(&GrayView::packed(&a, w, h).unwrap(), &p, &mut again).unwrap();
+    assert_eq!(first, again);
+}
