@@ -8,9 +8,11 @@
 //!   paper's Eq. 1-2 with Jacobians, depth back-projection, Horn/Umeyama alignment.
 //! - [`image`]: borrowed image views with stride, 2x downsampling, the image variation `v_m` and the
 //!   total variation `W(I)` of the paper's Eq. 3.
-//! - [`features`]: the Fast-Hessian detector and grid bucketing (issue 3, in progress).
-//! - [`matching`]: affine region matching (issue 3, in progress).
-//! - [`tracking`]: robust pose estimation (issue 3, in progress).
+//! - [`features`]: the Fast-Hessian detector on a rolling integral buffer, and grid bucketing.
+//! - [`matching`]: region matching under a bank of affine transforms, refined by affine
+//!   Lucas-Kanade, with a forward-backward check.
+//! - [`tracking`]: robust SE(3) pose estimation (LM with Huber, RANSAC on 3-point sets), the
+//!   constant-velocity motion model.
 //! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
 //!   recorded datasets and the synthetic renderer implement.
 //!
