@@ -1,4 +1,6 @@
 //! Known-answer tests of the Fast-Hessian detector, and the full-frame reference that the
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 //! strip-wise detector must reproduce bit for bit.
 
 #![allow(clippy::needless_range_loop)] // index loops read clearer in the reference

@@ -1,4 +1,6 @@
 //! Every analytic Jacobian of the geometry module against central differences, through one
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 //! generic routine ([`check`]) at many deterministic random points.
 //!
 //! SO(3)/SE(3) functions are generic, so their cases run in f64 with tight tolerances (their f32

@@ -1,4 +1,6 @@
 //! Test helpers: a deterministic xorshift generator and samplers of rotations and twists.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 
 use nalgebra::{Point3, Vector3, Vector6};
 

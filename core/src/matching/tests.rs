@@ -1,4 +1,6 @@
 //! Known-answer tests of region matching on synthetic, deterministic images.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 
 extern crate std;
 

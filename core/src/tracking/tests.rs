@@ -1,4 +1,6 @@
 //! Known-answer tests of pose estimation on synthetic scenes.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 
 extern crate std;
 use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
