@@ -8,9 +8,11 @@ use std::mem::size_of;
 use ferroslam_core::config::{
     Config, QvgaDepthBuffer, QvgaGrayBuffer, VgaDepthBuffer, VgaGrayBuffer,
 };
+use ferroslam_core::features::{FeatureVec, QvgaHessianDetector, VgaHessianDetector};
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
+use ferroslam_core::tracking::{InlierMask, MotionModel, PoseEstimate};
 
 /// `size_of` of every type the budget table may name.
 fn measured() -> BTreeMap<&'static str, usize> {
@@ -25,6 +27,12 @@ fn measured() -> BTreeMap<&'static str, usize> {
         ("frame::RgbdFrame", size_of::<RgbdFrame<'static>>()),
         ("geometry::PinholeCamera", size_of::<PinholeCamera>()),
         ("geometry::Pose", size_of::<Pose>()),
+        ("features::QvgaHessianDetector", size_of::<QvgaHessianDetector>()),
+        ("features::VgaHessianDetector", size_of::<VgaHessianDetector>()),
+        ("features::FeatureVec", size_of::<FeatureVec>()),
+        ("tracking::InlierMask", size_of::<InlierMask>()),
+        ("tracking::PoseEstimate", size_of::<PoseEstimate>()),
+        ("tracking::MotionModel", size_of::<MotionModel>()),
     ])
 }
 
