@@ -28,6 +28,8 @@ fn replay_of_real_frames_writes_a_report() {
         out.path().to_str().unwrap(),
         "--max-frames",
         "5",
+        "--mode",
+        "data-path",
     ]);
     assert!(run.status.success(), "replay failed: {}", stderr(&run));
     let report: serde_json::Value =
@@ -107,7 +109,9 @@ fn demo_rejects_bad_options_and_usage_errors_exit_2() {
 #[test]
 fn short_demo_runs_end_to_end() {
     let out = tempfile::tempdir().unwrap();
-    let run = sim(&["demo", "--frames", "12", "--out", out.path().to_str().unwrap()]);
+    // The data-path mode (odometry, the default, is tested in tests/odometry.rs).
+    let out_dir = out.path().to_str().unwrap();
+    let run = sim(&["demo", "--frames", "12", "--mode", "data-path", "--out", out_dir]);
     assert!(run.status.success(), "{}", stderr(&run));
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains("no tracker yet"), "the demo says what it did: {stdout}");

@@ -41,6 +41,9 @@ use nalgebra::{Point2, Point3};
 
 use crate::config::capacity;
 
+pub mod frontend;
+mod frontend_params;
+mod keyframe;
 mod mask;
 mod motion;
 mod params;
@@ -50,6 +53,11 @@ mod ransac;
 #[cfg(test)]
 mod tests;
 
+pub use frontend::{
+    FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats,
+    QvgaFrontend, VgaFrontend,
+};
+pub use keyframe::{Keyframe, KeyframeLandmark, LandmarkFilter, MAX_KEYFRAME_LANDMARKS};
 pub use mask::InlierMask;
 pub use motion::{MotionModel, predict_constant_velocity};
 pub use params::PoseParams;

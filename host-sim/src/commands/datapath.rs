@@ -1,18 +1,22 @@
 //! The data path every frame takes before tracking: a [`FrameSource`] (dataset reader, synthetic
 //! renderer, or one wrapped in [`ProfileSource`]), then the core's per-frame image statistics.
 //!
-//! Until the front end exists (issue 3) this is all the pipeline does with a frame: the image
-//! variation `W(I)` of the paper's Eq. 3, computed by the core, and the depth coverage.
+//! [`run`] computes the image variation `W(I)` of the paper's Eq. 3 and the depth coverage;
+//! [`run_odometry`] also runs the core's odometry front end on every frame.
 
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use ferroslam_core::config::Profile;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
+use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::image::{ImageError, total_variation};
+use ferroslam_core::tracking::{Frontend, FrontendState};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::frame::{OwnedFrame, halve_frame};
+use crate::trajectory::{StampedPose, Trajectory};
 
 /// A source that halves every frame of `inner` `levels` times with the core's downsampling, as the
 /// firmware does with sensor frames: the port wrapper that puts a VGA source at the QVGA profile.
@@ -105,6 +109,20 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
+    run_with(source, expected, |_| Ok(()))
+}
+
+/// [`run`], also calling `on_frame` on every frame after the statistics (its time counts as
+/// processing time).
+///
+/// # Errors
+/// As [`run`], and `on_frame`'s error with the index of the frame.
+pub fn run_with<S, F>(source: &mut S, expected: usize, mut on_frame: F) -> Result<DataPathRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+    F: FnMut(&RgbdFrame<'_>) -> Result<()>,
+{
     let bar = ProgressBar::new(expected as u64);
     if let Ok(style) =
         ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
@@ -137,6 +155,7 @@ where
         last_t = frame.timestamp_s;
         let started = Instant::now();
         let stats = frame_stats(&frame);
+        on_frame(&frame).with_context(|| format!("frame {}", run.frames))?;
         let process = started.elapsed();
         run.process_s += process.as_secs_f64();
         (run.width, run.height) = frame.gray.size();
@@ -147,6 +166,111 @@ where
     bar.finish_and_clear();
     run.source_wait_s = wait.as_secs_f64();
     Ok(run)
+}
+
+/// What the odometry front end made of one frame.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct OdometryFrame {
+    /// Capture time, seconds.
+    pub timestamp_s: f64,
+    /// `"initializing"`, `"tracking"` or `"lost"` after the frame.
+    pub state: &'static str,
+    /// Whether the pose was estimated from the frame (else it is the motion-model prediction).
+    pub tracked: bool,
+    /// Whether the frame became a keyframe.
+    pub keyframe: bool,
+    /// Pose inliers.
+    pub inliers: usize,
+    /// Landmarks matched into the frame.
+    pub matches: usize,
+}
+
+/// The odometry front end's result over a whole source.
+#[derive(Debug, Clone)]
+pub struct OdometryRun {
+    /// The data path's figures (processing time includes the front end).
+    pub data: DataPathRun,
+    /// Camera-to-world pose of every frame (tracked or predicted).
+    pub camera: Trajectory,
+    /// Camera-to-world pose of every keyframe, when it was made.
+    pub keyframes: Trajectory,
+    /// Per-frame front-end figures.
+    pub per_frame: Vec<OdometryFrame>,
+    /// Frames with an estimated pose.
+    pub tracked_frames: usize,
+    /// Frames in the lost state.
+    pub lost_frames: usize,
+    /// Bytes of the core's front-end state (`size_of` of the `Frontend`).
+    pub state_bytes: usize,
+}
+
+/// Runs every frame of `source` through the core's odometry front end, sized for `profile`
+/// (QVGA: `Frontend<320, 240>`; VGA: `Frontend<640, 480>`), with the camera `cam` at the
+/// processing resolution.
+///
+/// # Errors
+/// As [`run_with`]; a frame the front end rejects (size or timestamp).
+pub fn run_odometry<S>(
+    source: &mut S,
+    expected: usize,
+    cam: &PinholeCamera,
+    profile: Profile,
+) -> Result<OdometryRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
+    if profile.downsample_levels == 0 {
+        odometry_with::<640, 480, S>(source, expected, cam)
+    } else {
+        odometry_with::<320, 240, S>(source, expected, cam)
+    }
+}
+
+fn odometry_with<const W: usize, const H: usize, S>(
+    source: &mut S,
+    expected: usize,
+    cam: &PinholeCamera,
+) -> Result<OdometryRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
+    // Up to ~540 KB: boxed, never kept on the stack.
+    let mut frontend: Box<Frontend<W, H>> = Box::default();
+    let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
+    let data = run_with(source, expected, |frame| {
+        let r = frontend.process(frame, cam)?;
+        let pose = StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() };
+        camera.push(pose);
+        if r.keyframe_created {
+            keyframes.push(pose);
+        }
+        let state = match r.state {
+            FrontendState::Initializing => "initializing",
+            FrontendState::Tracking => "tracking",
+            FrontendState::Lost => "lost",
+        };
+        per_frame.push(OdometryFrame {
+            timestamp_s: frame.timestamp_s,
+            state,
+            tracked: r.tracked,
+            keyframe: r.keyframe_created,
+            inliers: r.inliers,
+            matches: r.matches,
+        });
+        Ok(())
+    })?;
+    let stats = frontend.stats();
+    Ok(OdometryRun {
+        data,
+        camera: Trajectory::new(camera),
+        keyframes: Trajectory::new(keyframes),
+        per_frame,
+        tracked_frames: stats.tracked_frames as usize,
+        lost_frames: stats.lost_frames as usize,
+        state_bytes: std::mem::size_of::<Frontend<W, H>>(),
+    })
 }
 
 /// The core's statistics of one frame.

@@ -5,11 +5,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use super::datapath::{self, ProfileSource};
-use super::replay::ProfileArg;
-use super::report::Report;
+use super::replay::{ModeArg, ProfileArg, summary};
+use super::report::{Report, write_odometry};
 use crate::eval;
 use crate::plot;
 use crate::synth::rng::SplitMix64;
@@ -46,6 +47,10 @@ pub struct DemoArgs {
     /// Seed of the noise, holes and shake.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// What runs on each frame: the odometry front end, or the data path only (which evaluates a
+    /// simulated dead-reckoning baseline instead of an estimate).
+    #[arg(long, value_enum, default_value = "odometry")]
+    pub mode: ModeArg,
 }
 
 /// Runs `demo`.
@@ -73,6 +78,35 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let profile = args.profile.profile();
     let frames = sequence.len();
     let started = Instant::now();
+    if args.mode == ModeArg::Odometry {
+        let k = sequence.intrinsics();
+        #[allow(clippy::cast_possible_truncation)] // intrinsics are exact in f32
+        let sensor = PinholeCamera::new(
+            k.fx as f32,
+            k.fy as f32,
+            k.cx as f32,
+            k.cy as f32,
+            k.width,
+            k.height,
+        )
+        .map_err(|e| anyhow::anyhow!("synthetic intrinsics: {e}"))?;
+        let mut cam = sensor;
+        for _ in 0..profile.downsample_levels {
+            cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
+        }
+        let mut source = ProfileSource::new(sequence.into_source(), profile.downsample_levels);
+        let run = datapath::run_odometry(&mut source, frames, &cam, profile)?;
+        let wall_s = started.elapsed().as_secs_f64();
+        let note = format!(
+            "odometry: {} synthetic frames rendered at 640x480, frame-to-keyframe front end at {} \
+             ({}x{}); no map, no loop closure",
+            run.data.frames, profile.name, run.data.width, run.data.height
+        );
+        let out_files = write_odometry(out, &run, Some(&gt), profile.name, 0, note)?;
+        println!("demo: {}", summary(&out_files.report, wall_s));
+        println!("  wrote {}", out.display());
+        return Ok(());
+    }
     let mut source = ProfileSource::new(sequence.into_source(), profile.downsample_levels);
     let run = datapath::run(&mut source, frames)?;
     let elapsed = started.elapsed().as_secs_f64();

@@ -1,8 +1,10 @@
 //! The `ferroslam-sim` command line (the contract of `shared/design.md`).
 //!
 //! ```text
-//! ferroslam-sim demo [--out DIR]                       the built-in synthetic sequence
-//! ferroslam-sim replay DATASET --out DIR [--profile qvga|vga] [--max-frames N]
+//! ferroslam-sim demo [--out DIR] [--mode odometry|data-path] [--frames N] [--depth-noise K]
+//!                    [--holes F] [--blur N] [--shake A] [--fast-rotation] [--seed S]
+//! ferroslam-sim replay DATASET --out DIR [--profile qvga|vga] [--mode odometry|data-path]
+//!                      [--preset tum1|tum2|tum3] [--max-frames N]
 //! ferroslam-sim eval GROUNDTRUTH ESTIMATE [--json]     ATE/RPE, evo-compatible
 //! ```
 //! Every error is printed with its causes (file and line where there is one) and the process exits

@@ -4,11 +4,14 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use std::time::Instant;
+
 use ferroslam_core::config::{Profile, QVGA, VGA};
+use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
 use super::datapath;
-use super::report::Report;
+use super::report::{Report, write_odometry};
 use crate::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use crate::plot;
 
@@ -35,8 +38,10 @@ impl ProfileArg {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ModeArg {
     /// The data path only: decoding, the profile's downsampling and the core's image statistics.
-    /// Tracking (`odometry`) and mapping (`slam`) are the next issues' work.
     DataPath,
+    /// The data path, then the core's frame-to-keyframe odometry front end (no map, no back end:
+    /// drift is not corrected). Mapping (`slam`) is later work.
+    Odometry,
 }
 
 /// Arguments of `replay`.
@@ -57,7 +62,7 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub max_frames: Option<usize>,
     /// What runs on each frame.
-    #[arg(long, value_enum, default_value = "data-path")]
+    #[arg(long, value_enum, default_value = "odometry")]
     pub mode: ModeArg,
 }
 
@@ -80,6 +85,23 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let gt: Option<Vec<Point3<f64>>> = dataset
         .groundtruth_trajectory()
         .map(|t| t.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect());
+    if args.mode == ModeArg::Odometry {
+        let c = dataset.calibration();
+        let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
+            .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
+        let gt_traj = dataset.groundtruth_trajectory().cloned();
+        let mut reader = dataset.into_reader(8);
+        let started = Instant::now();
+        let run = datapath::run_odometry(&mut reader, frames, &cam, profile)?;
+        let wall_s = started.elapsed().as_secs_f64();
+        let note = format!(
+            "odometry: frame-to-keyframe front end at {} ({}x{}); no map, no loop closure",
+            profile.name, run.data.width, run.data.height
+        );
+        let out = write_odometry(&args.out, &run, gt_traj.as_ref(), profile.name, skipped, note)?;
+        println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
+        return Ok(());
+    }
     let mut reader = dataset.into_reader(8);
     let run = datapath::run(&mut reader, frames)?;
     let note = format!(
@@ -102,4 +124,22 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         args.out.join("report.json").display()
     );
     Ok(())
+}
+
+/// The one-line summary of an odometry run.
+pub fn summary(report: &Report, wall_s: f64) -> String {
+    let ate = report.ate_rmse_m.map_or("n/a (no ground truth)".to_owned(), |a| format!("{a:.4} m"));
+    format!(
+        "odometry ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
+         {:.1} s wall ({:.1} ms median per frame in the core); Frontend state {} bytes",
+        report.profile,
+        report.frames,
+        report.tracked_frames,
+        report.lost_frames,
+        report.keyframes,
+        report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
+        wall_s,
+        report.host_cost.process_median / 1000.0,
+        report.state_bytes,
+    )
 }

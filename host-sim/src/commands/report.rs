@@ -4,8 +4,12 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
+use sha2::Digest;
 
-use super::datapath::{DataPathRun, FrameStats, median};
+use super::datapath::{DataPathRun, FrameStats, OdometryFrame, OdometryRun, median};
+use crate::eval::{self, EvalReport};
+use crate::plot;
+use crate::trajectory::Trajectory;
 
 /// Wall-clock cost figures of the host run. Informational: the per-frame cost contract is counted
 /// in instructions by the benchmarks, never in seconds.
@@ -24,7 +28,7 @@ pub struct HostCost {
 /// The report of a `replay` or `demo` run.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
-    /// What ran: `"data-path"` until tracking exists.
+    /// What ran: `"data-path"` or `"odometry"`.
     pub mode: &'static str,
     /// Plain words on what this run did and did not do.
     pub note: String,
@@ -36,15 +40,17 @@ pub struct Report {
     pub height: usize,
     /// Frames processed.
     pub frames: usize,
-    /// Frames with a tracked pose (0: no tracker yet).
+    /// Frames with a pose estimated from the images (0 in data-path mode).
     pub tracked_frames: usize,
-    /// Keyframes in the map (0: no map yet).
+    /// Frames the front end was lost in: their pose is the motion-model prediction.
+    pub lost_frames: usize,
+    /// Keyframes made (0 in data-path mode).
     pub keyframes: usize,
     /// ATE RMSE of CameraTrajectory.txt against ground truth, metres; null without one of them.
     pub ate_rmse_m: Option<f64>,
     /// RPE translation per second of CameraTrajectory.txt, metres per second; null without it.
     pub rpe_trans_m_per_s: Option<f64>,
-    /// Bytes of SLAM state the core holds (0: no tracker or map yet).
+    /// Bytes of SLAM state the core holds (`size_of` the front end; 0 in data-path mode).
     pub state_bytes: usize,
     /// SHA-256 of CameraTrajectory.txt; null when none was written.
     pub output_sha256: Option<String>,
@@ -58,6 +64,9 @@ pub struct Report {
     pub host_cost: HostCost,
     /// Per-frame figures.
     pub per_frame: Vec<FrameStats>,
+    /// Per-frame front-end figures (odometry mode only).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub odometry: Vec<OdometryFrame>,
 }
 
 impl Report {
@@ -77,6 +86,7 @@ impl Report {
             height: run.height,
             frames: run.frames,
             tracked_frames: 0,
+            lost_frames: 0,
             keyframes: 0,
             ate_rmse_m: None,
             rpe_trans_m_per_s: None,
@@ -97,6 +107,31 @@ impl Report {
                 source_wait_mean: run.source_wait_s * 1e6 / n,
             },
             per_frame: run.per_frame.clone(),
+            odometry: Vec::new(),
+        }
+    }
+
+    /// An odometry report of `run`, with `evaluation` against ground truth when there is one and
+    /// `sha256` of the CameraTrajectory.txt written.
+    pub fn odometry(
+        run: &OdometryRun,
+        profile: &'static str,
+        skipped: usize,
+        note: String,
+        evaluation: Option<&EvalReport>,
+        sha256: String,
+    ) -> Self {
+        Self {
+            mode: "odometry",
+            tracked_frames: run.tracked_frames,
+            lost_frames: run.lost_frames,
+            keyframes: run.keyframes.len(),
+            ate_rmse_m: evaluation.map(|e| e.ate.rmse),
+            rpe_trans_m_per_s: evaluation.and_then(|e| e.rpe_per_second.map(|r| r.trans.rmse)),
+            state_bytes: run.state_bytes,
+            output_sha256: Some(sha256),
+            odometry: run.per_frame.clone(),
+            ..Self::data_path(&run.data, profile, skipped, note)
         }
     }
 
@@ -109,4 +144,44 @@ impl Report {
         let text = serde_json::to_string_pretty(self)?;
         std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// What [`write_odometry`] wrote and measured.
+#[derive(Debug, Clone)]
+pub struct OdometryOutputs {
+    /// The report written to `report.json`.
+    pub report: Report,
+    /// The evaluation against ground truth, when there is one.
+    pub evaluation: Option<EvalReport>,
+}
+
+/// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
+/// `trajectory.svg` and `ate.svg` into `dir`.
+///
+/// # Errors
+/// A file that cannot be written; an evaluation error (e.g. no estimated pose near a ground-truth one).
+pub fn write_odometry(
+    dir: &Path,
+    run: &OdometryRun,
+    gt: Option<&Trajectory>,
+    profile: &'static str,
+    skipped: usize,
+    note: String,
+) -> Result<OdometryOutputs> {
+    let camera_path = dir.join("CameraTrajectory.txt");
+    run.camera.write_tum(&camera_path)?;
+    run.keyframes.write_tum(&dir.join("KeyFrameTrajectory.txt"))?;
+    let bytes = std::fs::read(&camera_path)
+        .with_context(|| format!("reading back {}", camera_path.display()))?;
+    let sha256: String = sha2::Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
+    let evaluation = match gt.filter(|g| !g.is_empty()) {
+        Some(gt) if !run.camera.is_empty() => Some(eval::evaluate(gt, &run.camera, 0.02)?),
+        _ => None,
+    };
+    if let Some(e) = &evaluation {
+        plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
+    }
+    let report = Report::odometry(run, profile, skipped, note, evaluation.as_ref(), sha256);
+    report.write(dir)?;
+    Ok(OdometryOutputs { report, evaluation })
 }

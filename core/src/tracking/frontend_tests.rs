@@ -1,0 +1,176 @@
+//! The front end on a small ray-cast scene with known poses, and on bad frames.
+//!
+//! Test code only: compiled under #[cfg(test)] from `frontend.rs`.
+
+extern crate std;
+use std::boxed::Box;
+use std::vec::Vec;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+use super::*;
+use crate::image::{DepthView, GrayView, ImageView};
+
+const W: usize = 320;
+const H: usize = 240;
+const DEPTH_SCALE: f32 = 5000.0;
+
+fn camera() -> PinholeCamera {
+    PinholeCamera::new(262.5, 262.5, 159.5, 119.5, W, H).unwrap()
+}
+
+fn hash(i: i32, j: i32, k: u32) -> f32 {
+    let mut h = (i as u32).wrapping_mul(0x9E37_79B9) ^ (j as u32).wrapping_mul(0x85EB_CA6B) ^ k;
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2C1B_3C6D);
+    h ^= h >> 12;
+    (h & 0xFFFF) as f32 / 65535.0
+}
+
+/// Gray level of the wall at world `(x, y)`: jittered Gaussian blobs of random contrast on a
+/// lattice of 8 cm, over a smooth gradient.
+fn texture(x: f32, y: f32) -> f32 {
+    const S: f32 = 0.08;
+    let (ci, cj) = (libm::floorf(x / S) as i32, libm::floorf(y / S) as i32);
+    let mut g = 128.0 + 20.0 * libm::sinf(1.3 * x + 0.7 * y);
+    for i in ci - 1..=ci + 1 {
+        for j in cj - 1..=cj + 1 {
+            let bx = (i as f32 + 0.2 + 0.6 * hash(i, j, 1)) * S;
+            let by = (j as f32 + 0.2 + 0.6 * hash(i, j, 2)) * S;
+            let amp = 160.0 * (hash(i, j, 3) - 0.5);
+            let sigma = 0.012 + 0.01 * hash(i, j, 4);
+            let r2 = (x - bx) * (x - bx) + (y - by) * (y - by);
+            g += amp * libm::expf(-r2 / (2.0 * sigma * sigma));
+        }
+    }
+    g.clamp(0.0, 255.0)
+}
+
+/// Renders the wall `z_w = 2 + 0.1 x_w` seen from `t_wc`: gray and raw depth (scale 5000).
+fn render(t_wc: &Pose) -> (Vec<u8>, Vec<u16>) {
+    let cam = camera();
+    let (mut gray, mut depth) = (vec_of(0u8), vec_of(0u16));
+    let o = t_wc.translation.vector;
+    for v in 0..H {
+        for u in 0..W {
+            let d_c = cam.back_project(u as f32, v as f32, 1.0).coords;
+            let d = t_wc.rotation * d_c;
+            // Plane n.p = 2 with n = (-0.1, 0, 1).
+            let n = Vector3::new(-0.1, 0.0, 1.0);
+            let t = (2.0 - n.dot(&o)) / n.dot(&d);
+            let hit = o + d * t;
+            gray[v * W + u] = texture(hit.x, hit.y) as u8;
+            depth[v * W + u] = (t * DEPTH_SCALE) as u16; // depth along the optical axis (d_c.z = 1)
+        }
+    }
+    (gray, depth)
+}
+
+fn vec_of<T: Copy>(x: T) -> Vec<T> {
+    std::vec![x; W * H]
+}
+
+fn frame<'a>(t: f64, gray: &'a [u8], depth: &'a [u16]) -> RgbdFrame<'a> {
+    RgbdFrame {
+        timestamp_s: t,
+        gray: GrayView::packed(gray, W, H).unwrap(),
+        depth: DepthView::new(ImageView::packed(depth, W, H).unwrap(), DEPTH_SCALE).unwrap(),
+    }
+}
+
+fn pose_at(k: usize) -> Pose {
+    let s = k as f32;
+    Pose::from_parts(
+        Translation3::new(0.01 * s, -0.004 * s, 0.006 * s),
+        UnitQuaternion::from_scaled_axis(Vector3::new(0.002 * s, -0.004 * s, 0.003 * s)),
+    )
+}
+
+#[test]
+fn tracks_a_known_motion_to_a_centimetre() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut last_err = f32::INFINITY;
+    for k in 0..12 {
+        let truth = pose_at(k);
+        let (g, d) = render(&truth);
+        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam).unwrap();
+        assert!(r.tracked, "frame {k}: {r:?}");
+        assert_eq!(r.state, FrontendState::Tracking);
+        if k > 0 {
+            assert!(r.inliers >= 30, "frame {k}: {r:?}");
+        }
+        // The first frame defines the world; the truth starts at the identity too.
+        last_err = (r.t_wc.translation.vector - truth.translation.vector).norm();
+        let rot_err = (r.t_wc.rotation.inverse() * truth.rotation).angle();
+        assert!(last_err < 0.01, "frame {k}: translation error {last_err} m, {r:?}");
+        assert!(rot_err < 0.01, "frame {k}: rotation error {rot_err} rad");
+    }
+    assert!(last_err < 0.01);
+    let stats = fe.stats();
+    assert_eq!((stats.frames, stats.tracked_frames, stats.lost_frames), (12, 12, 0));
+    assert!(stats.keyframes >= 1);
+}
+
+#[test]
+fn black_frames_and_missing_depth_never_panic() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let (black, no_depth) = (vec_of(0u8), vec_of(0u16));
+    let r = fe.process(&frame(0.0, &black, &no_depth), &cam).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Initializing, false));
+    let (g, d) = render(&pose_at(0));
+    let r = fe.process(&frame(0.1, &g, &no_depth), &cam).unwrap();
+    assert_eq!(r.state, FrontendState::Initializing, "no depth: no keyframe");
+    let r = fe.process(&frame(0.2, &g, &d), &cam).unwrap();
+    assert!(r.keyframe_created && r.tracked);
+    // A black frame while tracking: lost, pose held (the prediction), never a jump.
+    let r = fe.process(&frame(0.3, &black, &d), &cam).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
+    assert!(r.t_wc.translation.vector.norm() < 1e-6);
+    // All-invalid depth while lost: matching still works on the image, so it may recover; it
+    // must not panic.
+    let r = fe.process(&frame(0.4, &g, &no_depth), &cam).unwrap();
+    assert!(r.state != FrontendState::Initializing);
+    // The same frame again (new timestamp) tracks at the same pose.
+    let r = fe.process(&frame(0.5, &g, &d), &cam).unwrap();
+    assert!(r.tracked, "{r:?}");
+    assert!(r.t_wc.translation.vector.norm() < 0.005, "{r:?}");
+    assert!(fe.stats().lost_frames >= 1);
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let (g, d) = render(&pose_at(0));
+    fe.process(&frame(1.0, &g, &d), &cam).unwrap();
+    let e = fe.process(&frame(1.0, &g, &d), &cam).unwrap_err();
+    assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
+    let e = fe.process(&frame(f64::NAN, &g, &d), &cam).unwrap_err();
+    assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
+    let small = PinholeCamera::new(100.0, 100.0, 50.0, 50.0, 100, 100).unwrap();
+    let e = fe.process(&frame(2.0, &g, &d), &small).unwrap_err();
+    assert!(matches!(e, FrontendError::SizeMismatch { .. }));
+}
+
+#[test]
+fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
+    let p = FrontendParams::DEFAULT;
+    let hessian = crate::features::HessianParams { threshold: 30.0, ..Default::default() };
+    assert_eq!(p.hessian, hessian);
+    assert_eq!(p.matching, crate::matching::MatchParams::default());
+    assert_eq!(p.pose, super::super::PoseParams::default());
+    assert!(p.is_valid());
+    let t = crate::config::Tunables::default();
+    assert_eq!(p.with_tunables(&t), p, "depth range as the Tunables");
+    let qvga = core::mem::size_of::<QvgaFrontend>();
+    let vga = core::mem::size_of::<VgaFrontend>();
+    std::println!("QvgaFrontend {qvga} bytes, VgaFrontend {vga} bytes");
+    #[cfg(target_pointer_width = "64")]
+    {
+        assert_eq!(core::mem::size_of::<Keyframe<320, 240>>(), 89_144);
+        assert_eq!(core::mem::size_of::<Keyframe<640, 480>>(), 319_544);
+        assert_eq!((qvga, vga), (217_424, 538_704));
+    }
+}
