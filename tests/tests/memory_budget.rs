@@ -12,7 +12,7 @@ use ferroslam_core::features::{FeatureVec, QvgaHessianDetector, VgaHessianDetect
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
-use ferroslam_core::tracking::{InlierMask, MotionModel, PoseEstimate};
+use ferroslam_core::tracking::{InlierMask, MotionModel, PoseEstimate, QvgaFrontend, VgaFrontend};
 
 /// `size_of` of every type the budget table may name.
 fn measured() -> BTreeMap<&'static str, usize> {
@@ -33,6 +33,8 @@ fn measured() -> BTreeMap<&'static str, usize> {
         ("tracking::InlierMask", size_of::<InlierMask>()),
         ("tracking::PoseEstimate", size_of::<PoseEstimate>()),
         ("tracking::MotionModel", size_of::<MotionModel>()),
+        ("tracking::QvgaFrontend", size_of::<QvgaFrontend>()),
+        ("tracking::VgaFrontend", size_of::<VgaFrontend>()),
     ])
 }
 
