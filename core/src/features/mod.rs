@@ -129,16 +129,21 @@ pub struct HessianParams {
     pub max_features: u16,
 }
 
+impl HessianParams {
+    /// The defaults, usable in `const` contexts (what [`Default`] gives).
+    pub const DEFAULT: Self = Self {
+        threshold: 100.0,
+        octaves: 2,
+        grid_cols: 8,
+        grid_rows: 6,
+        per_cell_cap: 12,
+        max_features: MAX_FEATURES_PER_FRAME as u16,
+    };
+}
+
 impl Default for HessianParams {
     fn default() -> Self {
-        Self {
-            threshold: 100.0,
-            octaves: 2,
-            grid_cols: 8,
-            grid_rows: 6,
-            per_cell_cap: 12,
-            max_features: MAX_FEATURES_PER_FRAME as u16,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -164,22 +164,27 @@ pub struct MatchParams {
     pub forward_backward_max_px: Option<f32>,
 }
 
+impl MatchParams {
+    /// The defaults, usable in `const` contexts (what [`Default`] gives).
+    pub const DEFAULT: Self = Self {
+        half_size: 7,
+        search_radius: 8,
+        coarse_step: 2,
+        coarse_candidates: 2,
+        bank: &AFFINE_BANK,
+        initial_affine: IDENTITY,
+        min_template_std: 3.0,
+        min_zncc: 0.8,
+        lk_max_iterations: 16,
+        lk_epsilon_px: 0.002,
+        max_refine_shift_px: 2.0,
+        min_peak_margin: Some(0.05),
+        forward_backward_max_px: Some(0.5),
+    };
+}
+
 impl Default for MatchParams {
     fn default() -> Self {
-        Self {
-            half_size: 7,
-            search_radius: 8,
-            coarse_step: 2,
-            coarse_candidates: 2,
-            bank: &AFFINE_BANK,
-            initial_affine: IDENTITY,
-            min_template_std: 3.0,
-            min_zncc: 0.8,
-            lk_max_iterations: 16,
-            lk_epsilon_px: 0.002,
-            max_refine_shift_px: 2.0,
-            min_peak_margin: Some(0.05),
-            forward_backward_max_px: Some(0.5),
-        }
+        Self::DEFAULT
     }
 }

@@ -47,25 +47,30 @@ pub struct PoseParams {
     pub max_sigma_rotation_rad: f32,
 }
 
+impl PoseParams {
+    /// The defaults, usable in `const` contexts (what [`Default`] gives).
+    pub const DEFAULT: Self = Self {
+        pixel_sigma_px: 1.0,
+        depth_noise_coeff_per_m: 3.0e-3,
+        huber_delta_px: 2.447_7, // sqrt(5.991)
+        chi2_reprojection: 5.991,
+        chi2_depth: 3.841,
+        max_iterations: 10,
+        refine_rounds: 3,
+        min_step_translation_m: 1.0e-5,
+        min_step_rotation_rad: 1.0e-5,
+        ransac_iterations: 128,
+        ransac_confidence: 0.999,
+        min_inliers: 15,
+        min_inlier_ratio: 0.5,
+        max_sigma_translation_m: 0.05,
+        max_sigma_rotation_rad: 0.035,
+    };
+}
+
 impl Default for PoseParams {
     fn default() -> Self {
-        Self {
-            pixel_sigma_px: 1.0,
-            depth_noise_coeff_per_m: 3.0e-3,
-            huber_delta_px: 2.447_7, // sqrt(5.991)
-            chi2_reprojection: 5.991,
-            chi2_depth: 3.841,
-            max_iterations: 10,
-            refine_rounds: 3,
-            min_step_translation_m: 1.0e-5,
-            min_step_rotation_rad: 1.0e-5,
-            ransac_iterations: 128,
-            ransac_confidence: 0.999,
-            min_inliers: 15,
-            min_inlier_ratio: 0.5,
-            max_sigma_translation_m: 0.05,
-            max_sigma_rotation_rad: 0.035,
-        }
+        Self::DEFAULT
     }
 }
 
