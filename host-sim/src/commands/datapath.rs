@@ -15,6 +15,7 @@ use ferroslam_core::tracking::{Frontend, FrontendState};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use crate::eval::stats::median_of_sorted;
 use crate::frame::{OwnedFrame, halve_frame};
 use crate::trajectory::{StampedPose, Trajectory};
 
@@ -290,9 +291,5 @@ fn frame_stats(frame: &RgbdFrame<'_>) -> FrameStats {
 pub fn median(values: impl IntoIterator<Item = f64>) -> f64 {
     let mut v: Vec<f64> = values.into_iter().collect();
     v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => v[n / 2],
-        n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
-    }
+    median_of_sorted(&v).unwrap_or(0.0)
 }

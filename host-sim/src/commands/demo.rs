@@ -116,7 +116,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     // with realistic drift, and it is labelled as what it is everywhere it appears.
     let baseline = simulated_odometry(&gt, args.seed);
     baseline.write_tum(&out.join("baseline_trajectory.txt"))?;
-    let evaluation = eval::evaluate(&gt, &baseline, 0.02)?;
+    let evaluation = eval::evaluate(&gt, &baseline, eval::DEFAULT_MAX_DT_S)?;
     plot::plot_report(&evaluation, &out.join("trajectory.svg"), &out.join("ate.svg"))?;
 
     let note = format!(

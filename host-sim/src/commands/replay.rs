@@ -82,14 +82,11 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
-    let gt: Option<Vec<Point3<f64>>> = dataset
-        .groundtruth_trajectory()
-        .map(|t| t.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect());
+    let gt = dataset.groundtruth_trajectory().cloned();
     if args.mode == ModeArg::Odometry {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
-        let gt_traj = dataset.groundtruth_trajectory().cloned();
         let mut reader = dataset.into_reader(8);
         let started = Instant::now();
         let run = datapath::run_odometry(&mut reader, frames, &cam, profile)?;
@@ -98,7 +95,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             "odometry: frame-to-keyframe front end at {} ({}x{}); no map, no loop closure",
             profile.name, run.data.width, run.data.height
         );
-        let out = write_odometry(&args.out, &run, gt_traj.as_ref(), profile.name, skipped, note)?;
+        let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
         println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
         return Ok(());
     }
@@ -112,6 +109,8 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let report = Report::data_path(&run, profile.name, skipped, note.clone());
     report.write(&args.out)?;
     if let Some(gt) = gt.filter(|g| !g.is_empty()) {
+        let gt: Vec<Point3<f64>> =
+            gt.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect();
         let path = args.out.join("trajectory.svg");
         plot::plot_trajectory_top_view(&path, &gt, &[], "ground truth (no estimate yet)")?;
     }

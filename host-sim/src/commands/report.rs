@@ -168,14 +168,18 @@ pub fn write_odometry(
     skipped: usize,
     note: String,
 ) -> Result<OdometryOutputs> {
+    // Hash the very text written, rather than reading the file back.
+    let camera_text = run.camera.to_tum_string();
     let camera_path = dir.join("CameraTrajectory.txt");
-    run.camera.write_tum(&camera_path)?;
+    std::fs::write(&camera_path, &camera_text)
+        .with_context(|| format!("writing {}", camera_path.display()))?;
     run.keyframes.write_tum(&dir.join("KeyFrameTrajectory.txt"))?;
-    let bytes = std::fs::read(&camera_path)
-        .with_context(|| format!("reading back {}", camera_path.display()))?;
-    let sha256: String = sha2::Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
+    let sha256: String =
+        sha2::Sha256::digest(camera_text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect();
     let evaluation = match gt.filter(|g| !g.is_empty()) {
-        Some(gt) if !run.camera.is_empty() => Some(eval::evaluate(gt, &run.camera, 0.02)?),
+        Some(gt) if !run.camera.is_empty() => {
+            Some(eval::evaluate(gt, &run.camera, eval::DEFAULT_MAX_DT_S)?)
+        }
         _ => None,
     };
     if let Some(e) = &evaluation {

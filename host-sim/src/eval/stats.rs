@@ -27,6 +27,17 @@ pub struct ErrorStats {
     pub count: usize,
 }
 
+/// The median of ascending `sorted` values as numpy computes it (the mean of the two middle values
+/// for an even count); `None` when empty.
+pub fn median_of_sorted(sorted: &[f64]) -> Option<f64> {
+    let mid = sorted.len() / 2;
+    match (sorted.len() % 2, sorted.get(mid), mid.checked_sub(1).and_then(|lo| sorted.get(lo))) {
+        (1, Some(&m), _) => Some(m),
+        (_, Some(&hi), Some(&lo)) => Some((lo + hi) / 2.0),
+        _ => None,
+    }
+}
+
 impl ErrorStats {
     /// Statistics of `errors`; `None` if it is empty.
     pub fn from_errors(errors: &[f64]) -> Option<Self> {
@@ -39,12 +50,7 @@ impl ErrorStats {
         let var = errors.iter().map(|e| (e - mean) * (e - mean)).sum::<f64>() / n;
         let mut sorted = errors.to_vec();
         sorted.sort_by(f64::total_cmp);
-        let mid = sorted.len() / 2;
-        let median = match (sorted.len() % 2, sorted.get(mid), mid.checked_sub(1)) {
-            (1, Some(&m), _) => m,
-            (_, Some(&hi), Some(lo)) => (sorted.get(lo).copied().unwrap_or(hi) + hi) / 2.0,
-            _ => return None,
-        };
+        let median = median_of_sorted(&sorted)?;
         Some(Self {
             rmse: (sse / n).sqrt(),
             mean,
