@@ -412,3 +412,166 @@ fn rois_are_spread_and_disjoint() {
     let wide = RoiParams { border_px: usize::MAX, cell_px: usize::MAX, ..RoiParams::default() };
     assert!(select_rois::<8>(&mv, &wide).is_empty());
 }
+
+/// Tracks the centre of every ROI whose true image lies well inside the target with
+/// [`track_patch`], the true linear map as the predicted one and the prediction off by
+/// `pred_err`; returns the worst centre error (pixels) after asserting at least `min_ok`
+/// tracked. ROIs whose true target patch holds clipped pixels are skipped.
+fn run_track(
+    src: &[u8],
+    dst: &[u8],
+    m: Motion,
+    pred_err: (f32, f32),
+    params: &TrackParams,
+    min_ok: usize,
+) -> f32 {
+    let (sv, dv) = (GrayView::packed(src, W, H).unwrap(), GrayView::packed(dst, W, H).unwrap());
+    let (mut worst, mut ok, mut tried) = (0.0f32, 0, 0);
+    for roi in rois(src) {
+        let truth = m.apply(roi.centre);
+        if truth.0 < 30.0 || truth.1 < 30.0 || truth.0 > 290.0 || truth.1 > 210.0 {
+            continue;
+        }
+        // Clipped pixels (0 or 255) are not a gain and offset change: skip, as `run` does.
+        let clipped = (-6..=6).any(|j| {
+            (-6..=6).any(|i| {
+                let (x, y) = ((truth.0 as i32 + i) as usize, (truth.1 as i32 + j) as usize);
+                matches!(dst.get(y * W + x), Some(0 | 255))
+            })
+        });
+        if clipped {
+            continue;
+        }
+        tried += 1;
+        let predicted = (truth.0 + pred_err.0, truth.1 + pred_err.1);
+        let Ok(r) = track_patch(&sv, roi.centre, &m.a, &dv, predicted, params) else {
+            continue;
+        };
+        ok += 1;
+        worst = worst.max(dist(r.uv, truth));
+        assert!((r.offset_px - dist(r.uv, predicted)).abs() < 1e-4);
+    }
+    std::println!("{ok} of {tried} tracked, worst centre error {worst} px");
+    assert!(ok >= min_ok, "{ok} of {tried} tracked");
+    worst
+}
+
+#[test]
+fn track_recovers_translation_from_a_close_prediction() {
+    let m = Motion { a: IDENTITY, t: (3.3, -2.6) };
+    // Target rendered exactly from the texture: the error is the tracker's alone.
+    let tex = Texture::new(0x1234_5678);
+    let (src, dst) = (tex.render(Motion { a: IDENTITY, t: (0.0, 0.0) }), tex.render(m));
+    let worst = run_track(&src, &dst, m, (0.7, -0.45), &TrackParams::FINE, 10);
+    assert!(worst < 0.05, "centre error {worst}");
+}
+
+#[test]
+fn track_recovers_rotation_scale_with_the_predicted_map() {
+    let src = textured(0x9E37_79B9);
+    let m = Motion::similarity(7.0, 1.05, (3.3, -2.6));
+    let dst = warp(&src, m, 1.0, 0.0);
+    // The guide stage: a prediction several pixels off.
+    let worst = run_track(&src, &dst, m, (4.6, -3.2), &TrackParams::GUIDE, 8);
+    assert!(worst < 0.15, "centre error {worst}");
+    // With a gain and offset change.
+    let dst = warp(&src, m, 1.3, 20.0);
+    let worst = run_track(&src, &dst, m, (0.6, 0.3), &TrackParams::FINE, 5);
+    assert!(worst < 0.2, "centre error {worst}");
+}
+
+#[test]
+fn track_rejects_an_unrelated_target_and_a_repeated_pattern() {
+    let src = textured(0x0BAD_F00D);
+    let other = textured(0x5EED_0001);
+    let (sv, ov) = (GrayView::packed(&src, W, H).unwrap(), GrayView::packed(&other, W, H).unwrap());
+    let all = rois(&src);
+    let accepted = all
+        .iter()
+        .filter(|r| {
+            track_patch(&sv, r.centre, &IDENTITY, &ov, r.centre, &TrackParams::GUIDE).is_ok()
+        })
+        .count();
+    std::println!("unrelated: {accepted} of {} accepted", all.len());
+    assert!(all.len() >= 8);
+    assert!(accepted * 10 <= all.len(), "{accepted} of {} accepted", all.len());
+
+    let period = 6.0 * core::f32::consts::FRAC_1_PI * 0.5;
+    let mut rep = vec![0u8; W * H];
+    for (k, px) in rep.iter_mut().enumerate() {
+        let (x, y) = ((k % W) as f32, (k / W) as f32);
+        *px = (128.0 + 60.0 * libm::sinf(x / period) + 50.0 * libm::sinf(y / period)) as u8;
+    }
+    let m = Motion { a: IDENTITY, t: (2.4, -1.3) };
+    let dst = warp(&rep, m, 1.0, 0.0);
+    let (rv, dv) = (GrayView::packed(&rep, W, H).unwrap(), GrayView::packed(&dst, W, H).unwrap());
+    let (mut ambiguous, mut total) = (0, 0);
+    for cy in (40..200).step_by(20) {
+        for cx in (40..280).step_by(20) {
+            let c = (cx as f32, cy as f32);
+            let truth = m.apply(c);
+            total += 1;
+            let p = (truth.0 + 2.9, truth.1 - 2.2);
+            match track_patch(&rv, c, &IDENTITY, &dv, p, &TrackParams::GUIDE) {
+                Err(MatchError::Ambiguous { .. }) => ambiguous += 1,
+                Ok(r) => assert!(dist(r.uv, truth) < 0.2, "{c:?}: {r:?}"),
+                Err(_) => {}
+            }
+        }
+    }
+    std::println!("repeated: {ambiguous} of {total} ambiguous");
+    assert!(ambiguous * 10 >= total * 9, "{ambiguous} of {total}");
+}
+
+#[test]
+fn track_bad_input_and_borders_do_not_panic() {
+    let src = textured(11);
+    let dst = warp(&src, Motion { a: IDENTITY, t: (1.5, 0.5) }, 1.0, 0.0);
+    let (sv, dv) = (GrayView::packed(&src, W, H).unwrap(), GrayView::packed(&dst, W, H).unwrap());
+    let p = TrackParams::FINE;
+    let c = (100.0, 100.0);
+    let flat = vec![77u8; W * H];
+    let fv = GrayView::packed(&flat, W, H).unwrap();
+    assert!(matches!(
+        track_patch(&fv, c, &IDENTITY, &dv, c, &p),
+        Err(MatchError::FlatTemplate { std_dev }) if std_dev == 0.0
+    ));
+    // Template with its margin must fit (5 px at h = 4); the window too (6 px at R = 1).
+    assert_eq!(
+        track_patch(&sv, (4.0, 50.0), &IDENTITY, &dv, (50.0, 50.0), &p),
+        Err(MatchError::TemplateOutOfImage)
+    );
+    for edge in [(4.9, 50.0), (50.0, 234.0), (-500.0, 100.0), (314.5, 100.0)] {
+        assert_eq!(track_patch(&sv, c, &IDENTITY, &dv, edge, &p), Err(MatchError::NoCandidate));
+    }
+    for bad in [(f32::NAN, 100.0), (100.0, f32::INFINITY)] {
+        assert_eq!(track_patch(&sv, bad, &IDENTITY, &dv, c, &p), Err(MatchError::InvalidParams));
+        assert_eq!(track_patch(&sv, c, &IDENTITY, &dv, bad, &p), Err(MatchError::InvalidParams));
+    }
+    let singular = [[1.0, 2.0], [2.0, 4.0]];
+    assert_eq!(track_patch(&sv, c, &singular, &dv, c, &p), Err(MatchError::InvalidParams));
+    for q in [
+        TrackParams { half_size: 0, ..p },
+        TrackParams { half_size: MAX_TRACK_HALF_SIZE + 1, ..p },
+        TrackParams { search_radius: MAX_TRACK_SEARCH_RADIUS + 1, ..p },
+        TrackParams { search_step: 0, ..p },
+        TrackParams { search_step: 5, ..p },
+        TrackParams { min_zncc: f32::NAN, ..p },
+        TrackParams { max_refine_shift_px: 0.0, ..p },
+    ] {
+        assert_eq!(track_patch(&sv, c, &IDENTITY, &dv, c, &q), Err(MatchError::InvalidParams));
+    }
+    // The largest template and radius work, and every window inside the image is accepted.
+    let big = TrackParams {
+        half_size: MAX_TRACK_HALF_SIZE,
+        search_radius: MAX_TRACK_SEARCH_RADIUS,
+        search_step: 4,
+        ..TrackParams::GUIDE
+    };
+    let truth = (c.0 + 1.5, c.1 + 0.5);
+    let r = track_patch(&sv, c, &IDENTITY, &dv, (truth.0 - 9.0, truth.1 + 7.0), &big).unwrap();
+    assert!(dist(r.uv, truth) < 0.1, "{r:?}");
+    let tiny = [0u8, 255, 0, 255];
+    let tv = GrayView::packed(&tiny, 2, 2).unwrap();
+    assert_eq!(track_patch(&sv, c, &IDENTITY, &tv, (0.5, 0.5), &p), Err(MatchError::NoCandidate));
+}

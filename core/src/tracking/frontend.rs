@@ -29,8 +29,8 @@
 //!
 //! Everything is inline, no heap: the Hessian detector, a [`Keyframe`] (gray image copy and
 //! landmarks), the feature and correspondence scratch vectors. `size_of::<QvgaFrontend>()` is
-//! 217,424 bytes (detector 103,272, keyframe 89,144, features 10,248, correspondences ~14 KB) and
-//! `size_of::<VgaFrontend>()` 538,704 bytes, on a 64-bit host (unit-tested). [`Frontend::new`] is
+//! 217,552 bytes (detector 103,272, keyframe 89,144, features 10,248, correspondences ~14 KB) and
+//! `size_of::<VgaFrontend>()` 538,832 bytes, on a 64-bit host (unit-tested). [`Frontend::new`] is
 //! `const`: place it in a `static` on the board, box it (or build it on a big stack) on a host.
 
 use core::fmt;
@@ -39,11 +39,14 @@ use heapless::Vec;
 use nalgebra::{Point2, Point3};
 
 use super::keyframe::{Keyframe, depth_in_range};
-use super::{Correspondence, MAX_CORRESPONDENCES, MotionModel, PoseError, TrackingRng, track_pose};
+use super::{
+    Correspondence, MAX_CORRESPONDENCES, MotionModel, PoseError, PoseParams, TrackingRng,
+    track_pose,
+};
 use crate::features::{FeatureError, FeatureVec, HessianDetector};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
-use crate::matching::{IDENTITY, Mat2, match_region};
+use crate::matching::{IDENTITY, Mat2, MatchParams, match_region, track_patch};
 
 pub use super::frontend_params::FrontendParams;
 
@@ -80,6 +83,23 @@ pub struct FrameResult {
     pub inliers: usize,
     /// Landmarks matched into this frame.
     pub matches: usize,
+    /// Guide landmarks matched from the motion-model prediction (0 before the first keyframe).
+    pub guide_matches: usize,
+    /// Whether the guides gave no pose and the affine bank was searched.
+    pub bank_recovery: bool,
+}
+
+/// What [`Frontend::match_landmarks`] did.
+#[derive(Debug, Clone, Copy)]
+struct MatchSummary {
+    /// Correspondences of the final stage.
+    matches: usize,
+    /// The pose the final stage started from.
+    start_t_cw: Pose,
+    /// Guide matches.
+    guides: usize,
+    /// Whether the bank was searched.
+    bank_recovery: bool,
 }
 
 /// Why a frame could not be processed at all (bad input; a hard frame is [`FrontendState::Lost`]).
@@ -133,6 +153,9 @@ pub struct FrontendStats {
     pub lost_frames: u32,
     /// Keyframes made.
     pub keyframes: u32,
+    /// Frames whose guide landmarks could not give a pose from the motion model, so the affine
+    /// bank was searched (see the module documentation).
+    pub bank_recoveries: u32,
 }
 
 /// The odometry front end for images up to `W` x `H` (see the module documentation).
@@ -176,7 +199,13 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             rng: TrackingRng::new(0x5EED_F00D),
             state: FrontendState::Initializing,
             last: None,
-            stats: FrontendStats { frames: 0, tracked_frames: 0, lost_frames: 0, keyframes: 0 },
+            stats: FrontendStats {
+                frames: 0,
+                tracked_frames: 0,
+                lost_frames: 0,
+                keyframes: 0,
+                bank_recoveries: 0,
+            },
         }
     }
 
@@ -290,6 +319,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             keyframe_created: made,
             inliers: 0,
             matches: 0,
+            guide_matches: 0,
+            bank_recovery: false,
         }
     }
 
@@ -322,10 +353,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         predicted_t_cw: &Pose,
     ) -> FrameResult {
         let was_lost = self.state == FrontendState::Lost;
-        let matches = self.match_landmarks(frame, cam, predicted_t_cw);
+        let summary = self.match_landmarks(frame, cam, predicted_t_cw);
+        let (matches, start_t_cw) = (summary.matches, summary.start_t_cw);
         let estimate = if matches >= self.params.min_matches {
             let (corrs, pose) = (&self.correspondences, &self.params.pose);
-            track_pose(cam, corrs, Some(predicted_t_cw), pose, &mut self.rng)
+            track_pose(cam, corrs, Some(&start_t_cw), pose, &mut self.rng)
         } else {
             Err(PoseError::TooFewCorrespondences {
                 count: matches,
@@ -345,11 +377,15 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     keyframe_created: new_kf,
                     inliers: est.num_inliers,
                     matches,
+                    guide_matches: summary.guides,
+                    bank_recovery: summary.bank_recovery,
                 }
             }
             _ if was_lost => {
                 let mut r = self.initialize(frame, cam, predicted_t_cw, false);
                 r.matches = matches;
+                r.guide_matches = summary.guides;
+                r.bank_recovery = summary.bank_recovery;
                 r
             }
             _ => FrameResult {
@@ -359,6 +395,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 keyframe_created: false,
                 inliers: 0,
                 matches,
+                guide_matches: summary.guides,
+                bank_recovery: summary.bank_recovery,
             },
         }
     }
@@ -376,42 +414,130 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         few || moved
     }
 
-    /// Matches every visible landmark into `frame`; fills `self.correspondences` and returns
-    /// their number.
+    /// Matches the keyframe's landmarks into `frame` in three stages (see the module
+    /// documentation): guides from `predicted_t_cw`, their pose (or the bank recovery), then every
+    /// landmark from that pose. Fills `self.correspondences`.
     fn match_landmarks(
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
-        t_cw: &Pose,
-    ) -> usize {
+        predicted_t_cw: &Pose,
+    ) -> MatchSummary {
         self.correspondences.clear();
-        let Some(kf_img) = self.keyframe.image() else { return 0 };
-        let t_ck = t_cw * self.keyframe.t_wc();
-        let margin = self.params.matching.half_size as f32 + 1.0;
+        let mut summary = MatchSummary {
+            matches: 0,
+            start_t_cw: *predicted_t_cw,
+            guides: 0,
+            bank_recovery: false,
+        };
+        let Some(kf_img) = self.keyframe.image() else { return summary };
+        let p = &self.params;
+        let ctx = MatchContext { kf: &self.keyframe, kf_img: &kf_img, frame, cam, params: p };
+        let corrs = &mut self.correspondences;
+        ctx.track(predicted_t_cw, Matcher::Patch(&p.guide), p.guide_landmarks, corrs);
+        summary.guides = corrs.len();
+        let mut start = guide_pose(cam, corrs, predicted_t_cw, p, &mut self.rng);
+        if start.is_none() {
+            summary.bank_recovery = true;
+            // The prediction was too poor for the guides: search the affine bank instead.
+            corrs.clear();
+            ctx.track(predicted_t_cw, Matcher::Bank(&p.matching), p.guide_landmarks, corrs);
+            self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);
+            start = guide_pose(cam, corrs, predicted_t_cw, p, &mut self.rng);
+        }
+        summary.start_t_cw = start.unwrap_or(*predicted_t_cw);
+        corrs.clear();
+        ctx.track(&summary.start_t_cw, Matcher::Patch(&p.track), p.max_landmarks, corrs);
+        summary.matches = corrs.len();
+        summary
+    }
+}
+
+/// The pose of the guide correspondences, when it has at least `min_guide_inliers` inliers.
+fn guide_pose(
+    cam: &PinholeCamera,
+    corrs: &[Correspondence],
+    predicted_t_cw: &Pose,
+    p: &FrontendParams,
+    rng: &mut TrackingRng,
+) -> Option<Pose> {
+    if corrs.len() < p.min_guide_inliers {
+        return None;
+    }
+    // The guides are few: their pose needs `min_guide_inliers`, not the final pose's count.
+    let min_inliers = u32::try_from(p.min_guide_inliers).unwrap_or(u32::MAX);
+    let params = PoseParams { min_inliers, ..p.pose };
+    track_pose(cam, corrs, Some(predicted_t_cw), &params, rng)
+        .ok()
+        .filter(|est| est.num_inliers >= p.min_guide_inliers)
+        .map(|est| est.t_cw)
+}
+
+/// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.
+#[derive(Clone, Copy)]
+enum Matcher<'a> {
+    Patch(&'a crate::matching::TrackParams),
+    Bank(&'a crate::matching::MatchParams),
+}
+
+/// What matching a landmark into the current frame reads.
+struct MatchContext<'a, const W: usize, const H: usize> {
+    kf: &'a Keyframe<W, H>,
+    kf_img: &'a crate::image::GrayView<'a>,
+    frame: &'a RgbdFrame<'a>,
+    cam: &'a PinholeCamera,
+    params: &'a FrontendParams,
+}
+
+impl<const W: usize, const H: usize> MatchContext<'_, W, H> {
+    /// Matches landmarks, in the keyframe's (bucketed, so spread) order, into the frame from the
+    /// pose `t_cw`, pushing a correspondence per match into `out` until `max_matches` matched;
+    /// landmarks whose search would leave the image are skipped.
+    fn track(
+        &self,
+        t_cw: &Pose,
+        matcher: Matcher<'_>,
+        max_matches: usize,
+        out: &mut Vec<Correspondence, MAX_CORRESPONDENCES>,
+    ) {
+        let t_ck = t_cw * self.kf.t_wc();
+        let margin = match matcher {
+            Matcher::Patch(t) => (t.half_size + t.search_radius + 1) as f32,
+            Matcher::Bank(m) => m.half_size as f32 + 1.0,
+        };
         let (zmin, zmax) = (self.params.depth_min_m, self.params.depth_max_m);
-        for lm in self.keyframe.landmarks() {
-            let Some(uv) = cam.project_world(t_cw, &lm.p_w) else { continue };
-            if !cam.in_image(&uv, margin) {
+        for lm in self.kf.landmarks() {
+            if out.len() >= max_matches {
+                break;
+            }
+            let Some(uv) = self.cam.project_world(t_cw, &lm.p_w) else { continue };
+            if !self.cam.in_image(&uv, margin) {
                 continue;
             }
-            let initial_affine = induced_affine(cam, &t_ck, lm.uv_kf, lm.depth_kf_m);
-            let params = crate::matching::MatchParams { initial_affine, ..self.params.matching };
-            let Ok(m) = match_region(&kf_img, lm.uv_kf, &frame.gray, (uv.x, uv.y), &params) else {
-                continue;
+            let affine = induced_affine(self.cam, &t_ck, lm.uv_kf, lm.depth_kf_m);
+            let gray = &self.frame.gray;
+            let matched = match matcher {
+                Matcher::Patch(t) => {
+                    track_patch(self.kf_img, lm.uv_kf, &affine, gray, (uv.x, uv.y), t).map(|m| m.uv)
+                }
+                Matcher::Bank(m) => {
+                    let params = MatchParams { initial_affine: affine, ..*m };
+                    match_region(self.kf_img, lm.uv_kf, gray, (uv.x, uv.y), &params)
+                        .map(|m| m.centre_in_target)
+                }
             };
-            let (u, v) = m.centre_in_target;
+            let Ok((u, v)) = matched else { continue };
             let (x, y) = (libm::roundf(u), libm::roundf(v));
             let depth_m = if x >= 0.0 && y >= 0.0 {
-                depth_in_range(&frame.depth, x as usize, y as usize, zmin, zmax)
+                depth_in_range(&self.frame.depth, x as usize, y as usize, zmin, zmax)
             } else {
                 None
             };
             let c = Correspondence { p_w: lm.p_w, uv: Point2::new(u, v), depth_m };
-            if !c.is_valid() || self.correspondences.push(c).is_err() {
+            if !c.is_valid() || out.push(c).is_err() {
                 continue;
             }
         }
-        self.correspondences.len()
     }
 }
 

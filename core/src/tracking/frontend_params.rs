@@ -4,7 +4,7 @@ use super::PoseParams;
 use super::keyframe::LandmarkFilter;
 use crate::config::Tunables;
 use crate::features::HessianParams;
-use crate::matching::MatchParams;
+use crate::matching::{MatchParams, TrackParams};
 
 /// Tunables of [`Frontend`](super::frontend::Frontend). Distances in pixels are at the processing
 /// resolution.
@@ -14,9 +14,19 @@ pub struct FrontendParams {
     /// threshold lowered from 100 to 30 (at 100, QVGA Kinect frames of 7-Scenes give only ~40
     /// landmarks per keyframe; at 30 about 130).
     pub hessian: HessianParams,
-    /// Region matching of keyframe landmarks into the current frame (its `initial_affine` is
-    /// replaced per landmark by the map the predicted motion induces).
+    /// Guide stage: the first `guide_landmarks` landmarks tracked from the motion-model
+    /// prediction, with a wide search. Default [`TrackParams::GUIDE`].
+    pub guide: TrackParams,
+    /// Final stage: every landmark tracked from the guides' pose. Default [`TrackParams::FINE`].
+    pub track: TrackParams,
+    /// Recovery: the affine-bank region matching of the guide landmarks, used when the guides
+    /// give no pose (its `initial_affine` is replaced per landmark by the map the predicted
+    /// motion induces). Default [`MatchParams::DEFAULT`].
     pub matching: MatchParams,
+    /// Landmarks matched in the guide stage (and in a recovery). Default 24.
+    pub guide_landmarks: usize,
+    /// The guides' pose is used when it has at least this many inliers. Default 8.
+    pub min_guide_inliers: usize,
     /// Pose estimation.
     pub pose: PoseParams,
     /// Nearest usable depth, metres; default [`Tunables::depth_min_m`]'s default (see
@@ -55,7 +65,11 @@ impl FrontendParams {
         // 30 instead of the detector's 100: at QVGA on 7-Scenes, 100 left ~40 landmarks per
         // keyframe and lost 38 of the first 100 frames; 30 gives ~130 and loses none.
         hessian: HessianParams { threshold: 30.0, ..HessianParams::DEFAULT },
+        guide: TrackParams::GUIDE,
+        track: TrackParams::FINE,
         matching: MatchParams::DEFAULT,
+        guide_landmarks: 24,
+        min_guide_inliers: 8,
         pose: PoseParams::DEFAULT,
         depth_min_m: 0.3,
         depth_max_m: 4.0,
@@ -84,6 +98,10 @@ impl FrontendParams {
             && self.depth_min_m < self.depth_max_m
             && pos(self.max_relative_depth_step)
             && self.max_landmarks > 0
+            && self.guide_landmarks >= 3
+            && self.min_guide_inliers >= 3
+            && self.guide.is_valid()
+            && self.track.is_valid()
             && self.keyframe_inlier_ratio.is_finite()
             && pos(self.keyframe_max_translation_m)
             && pos(self.keyframe_max_rotation_rad)

@@ -160,6 +160,8 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     let hessian = crate::features::HessianParams { threshold: 30.0, ..Default::default() };
     assert_eq!(p.hessian, hessian);
     assert_eq!(p.matching, crate::matching::MatchParams::default());
+    let (guide, fine) = (crate::matching::TrackParams::GUIDE, crate::matching::TrackParams::FINE);
+    assert_eq!((p.guide, p.track), (guide, fine));
     assert_eq!(p.pose, super::super::PoseParams::default());
     assert!(p.is_valid());
     let t = crate::config::Tunables::default();
@@ -171,6 +173,6 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     {
         assert_eq!(core::mem::size_of::<Keyframe<320, 240>>(), 89_144);
         assert_eq!(core::mem::size_of::<Keyframe<640, 480>>(), 319_544);
-        assert_eq!((qvga, vga), (217_424, 538_704));
+        assert_eq!((qvga, vga), (217_552, 538_832));
     }
 }

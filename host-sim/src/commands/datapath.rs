@@ -184,6 +184,10 @@ pub struct OdometryFrame {
     pub inliers: usize,
     /// Landmarks matched into the frame.
     pub matches: usize,
+    /// Guide landmarks matched from the motion-model prediction.
+    pub guide_matches: usize,
+    /// Whether the guides gave no pose and the affine bank was searched.
+    pub bank_recovery: bool,
 }
 
 /// The odometry front end's result over a whole source.
@@ -259,6 +263,8 @@ where
             keyframe: r.keyframe_created,
             inliers: r.inliers,
             matches: r.matches,
+            guide_matches: r.guide_matches,
+            bank_recovery: r.bank_recovery,
         });
         Ok(())
     })?;

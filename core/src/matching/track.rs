@@ -1,0 +1,500 @@
+//! Patch tracking under a predicted warp: the cheap path of region matching, used for every
+//! landmark of every frame once the motion is predicted.
+//!
+//! [`match_region`](super::match_region) searches a bank of 45 affine maps because it does not
+//! know how the patch deforms. When the camera motion is predicted (motion model, or a pose
+//! already estimated from a few guide landmarks), the map the motion induces on the patch is known
+//! to within a few percent, and the bank reduces to that one map: the paper's transformation
+//! network evaluated at the transform the prediction selects. [`track_patch`]:
+//!
+//! 1. warps the keyframe patch by the predicted linear map `A` once: template
+//!    `T(q) = I_kf(c_kf + A^-1 q)` over the grid `q in [-h, h]^2`, plus a one-sample margin for
+//!    its gradients;
+//! 2. samples the target once over the whole search window at the predicted sub-pixel position
+//!    plus integer offsets (all samples share one set of bilinear weights, so each costs four
+//!    reads and four multiplies), then scores ZNCC at offsets `-R..=R` in steps of `s`, then at
+//!    every integer offset within `s - 1` of the best;
+//! 3. rejects an ambiguous search (another local maximum more than `s` away within
+//!    [`TrackParams::min_peak_margin`] of the best) and a hopeless one (best ZNCC more than 0.15
+//!    below [`TrackParams::min_zncc`], not worth refining);
+//! 4. refines the translation by inverse-compositional Lucas-Kanade with the template's
+//!    photometric directions (offset and gain) projected out, so a brightness change does not bias
+//!    the position; the 2 x 2 normal matrix is built once;
+//! 5. accepts the result when its ZNCC is at least [`TrackParams::min_zncc`] and refinement moved it
+//!    at most [`TrackParams::max_refine_shift_px`] from the best integer candidate.
+//!
+//! There is no forward-backward check here: the patch is always the keyframe's (tracking is
+//! frame-to-keyframe, so errors do not chain), and the robust pose estimate that follows rejects
+//! the outliers a wrong match makes. Only the linear part of the warp is predicted; the
+//! translation is searched and refined.
+//!
+//! # Cost
+//!
+//! With `n = (2h + 1)^2` grid samples, search radius `R` and step `s`: `(2h + 3)^2` general
+//! bilinear samples for the template, `(2(R + h) + 1)^2` shared-weight samples for the window,
+//! `((2 floor(R/s) + 1)^2 + (2s - 1)^2)` ZNCC candidates of `n` multiply-adds each, then per
+//! Lucas-Kanade step `n` shared-weight samples and ~8 flops each. At the defaults of the fine
+//! stage ([`TrackParams::FINE`]: `h = 4`, `R = 1`, `s = 1`, n = 81): 121 + 121 samples, 9
+//! candidates, typically 2-4 steps: about 3,000 samples and multiply-adds, ~15 k host
+//! instructions. The guide stage ([`TrackParams::GUIDE`]: `R = 8`, `s = 2`) adds a 25 x 25 window
+//! and 81 + 9 candidates, ~60 k instructions.
+//!
+//! # Memory
+//!
+//! No heap; under 9 KB of stack (the window buffer at the largest radius is 37 x 37 f32).
+//!
+//! # Determinism
+//!
+//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), square roots through `libm`;
+//! ties go to the first candidate in scan order (rows top to bottom, each left to right).
+
+use super::MatchError;
+use super::affine::{Mat2, mat_apply, mat_inverse};
+use super::patch::sample_bilinear;
+use crate::image::GrayView;
+
+/// Largest template half-size of [`track_patch`], pixels (13 x 13 templates).
+pub const MAX_TRACK_HALF_SIZE: usize = 6;
+
+/// Largest search radius of [`track_patch`], pixels.
+pub const MAX_TRACK_SEARCH_RADIUS: usize = 12;
+
+/// Side of the stored template, margin included.
+const MAX_TEMPLATE_SIDE: usize = 2 * MAX_TRACK_HALF_SIZE + 3;
+/// Grid samples of the largest template (169).
+const MAX_GRID: usize = (2 * MAX_TRACK_HALF_SIZE + 1) * (2 * MAX_TRACK_HALF_SIZE + 1);
+/// Side of the largest search window.
+const MAX_WINDOW_SIDE: usize = 2 * (MAX_TRACK_SEARCH_RADIUS + MAX_TRACK_HALF_SIZE) + 1;
+/// Side of the largest score grid.
+const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_SEARCH_RADIUS + 1;
+
+/// Samples are stored minus this so that one-pass sums of squares stay accurate in f32.
+const GRAY_OFFSET: f32 = 128.0;
+
+/// A search whose best ZNCC is this far below [`TrackParams::min_zncc`] is not refined.
+const HOPELESS_MARGIN: f32 = 0.15;
+
+/// Tunables of [`track_patch`]. Distances are in pixels of the images passed in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackParams {
+    /// Template half-size `h`, 1..=[`MAX_TRACK_HALF_SIZE`]: the template is `2h + 1` pixels square.
+    pub half_size: usize,
+    /// Search radius `R` around the prediction, 0..=[`MAX_TRACK_SEARCH_RADIUS`].
+    pub search_radius: usize,
+    /// Step `s` of the first search pass, 1..=4 (the second pass fills in around the best).
+    pub search_step: usize,
+    /// Templates with a gray-level standard deviation below this are rejected as flat.
+    pub min_template_std: f32,
+    /// Tracks whose refined ZNCC is below this are rejected.
+    pub min_zncc: f32,
+    /// Ambiguity test of the first pass; `None` skips it.
+    pub min_peak_margin: Option<f32>,
+    /// Most Lucas-Kanade steps.
+    pub max_iterations: usize,
+    /// Lucas-Kanade stops when a step is shorter than this, pixels.
+    pub epsilon_px: f32,
+    /// Refinement may move at most this far from the best integer candidate, pixels.
+    pub max_refine_shift_px: f32,
+}
+
+impl TrackParams {
+    /// Per-landmark tracking once the pose is well predicted: 9 x 9 template, search radius 1.
+    pub const FINE: Self = Self {
+        half_size: 4,
+        search_radius: 1,
+        search_step: 1,
+        min_template_std: 3.0,
+        min_zncc: 0.8,
+        min_peak_margin: None,
+        max_iterations: 10,
+        epsilon_px: 0.01,
+        max_refine_shift_px: 1.5,
+    };
+
+    /// The few guide landmarks tracked from the motion model alone: search radius 8 in steps of
+    /// 2, with the ambiguity test.
+    pub const GUIDE: Self = Self {
+        search_radius: 8,
+        search_step: 2,
+        min_peak_margin: Some(0.05),
+        max_refine_shift_px: 2.0,
+        ..Self::FINE
+    };
+
+    /// Whether every value is in range.
+    pub fn is_valid(&self) -> bool {
+        (1..=MAX_TRACK_HALF_SIZE).contains(&self.half_size)
+            && self.search_radius <= MAX_TRACK_SEARCH_RADIUS
+            && (1..=4).contains(&self.search_step)
+            && self.min_template_std.is_finite()
+            && self.min_zncc.is_finite()
+            && self.min_peak_margin.is_none_or(f32::is_finite)
+            && self.epsilon_px.is_finite()
+            && self.epsilon_px >= 0.0
+            && self.max_refine_shift_px.is_finite()
+            && self.max_refine_shift_px > 0.0
+    }
+}
+
+impl Default for TrackParams {
+    fn default() -> Self {
+        Self::FINE
+    }
+}
+
+/// A tracked patch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchTrack {
+    /// Where the keyframe centre lands in the target, pixels.
+    pub uv: (f32, f32),
+    /// ZNCC of the refined track, in [-1, 1].
+    pub zncc: f32,
+    /// Distance from the prediction, pixels.
+    pub offset_px: f32,
+}
+
+/// The warped template: `(2h + 3)^2` samples (margin included, minus [`GRAY_OFFSET`]), the
+/// zero-mean grid values and their norm.
+struct WarpedTemplate {
+    half: usize,
+    values: [f32; MAX_TEMPLATE_SIDE * MAX_TEMPLATE_SIDE],
+    zero_mean: [f32; MAX_GRID],
+    norm: f32,
+}
+
+impl WarpedTemplate {
+    fn new(img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2, half: usize) -> Option<Self> {
+        let side = 2 * half + 3;
+        let mut t = Self {
+            half,
+            values: [0.0; MAX_TEMPLATE_SIDE * MAX_TEMPLATE_SIDE],
+            zero_mean: [0.0; MAX_GRID],
+            norm: 0.0,
+        };
+        let m = (half + 1) as f32;
+        for (k, v) in t.values.iter_mut().take(side * side).enumerate() {
+            let q = ((k % side) as f32 - m, (k / side) as f32 - m);
+            let (dx, dy) = mat_apply(a_inv, q);
+            *v = sample_bilinear(img, centre.0 + dx, centre.1 + dy)? - GRAY_OFFSET;
+        }
+        let n = 2 * half + 1;
+        let mut sum = 0.0f32;
+        for j in 0..n {
+            for i in 0..n {
+                let v = t.values.get((j + 1) * side + i + 1).copied().unwrap_or(0.0);
+                sum += v;
+                if let Some(z) = t.zero_mean.get_mut(j * n + i) {
+                    *z = v;
+                }
+            }
+        }
+        let mean = sum / (n * n) as f32;
+        let mut ss = 0.0f32;
+        for z in t.zero_mean.iter_mut().take(n * n) {
+            *z -= mean;
+            ss += *z * *z;
+        }
+        t.norm = libm::sqrtf(ss);
+        Some(t)
+    }
+
+    fn side(&self) -> usize {
+        2 * self.half + 1
+    }
+
+    fn grid_len(&self) -> usize {
+        self.side() * self.side()
+    }
+
+    /// Central-difference gradient at grid index `(i, j)` (0-based, margin excluded).
+    fn gradient(&self, i: usize, j: usize) -> (f32, f32) {
+        let side = 2 * self.half + 3;
+        let at = |x: usize, y: usize| self.values.get(y * side + x).copied().unwrap_or(0.0);
+        let (x, y) = (i + 1, j + 1);
+        ((at(x + 1, y) - at(x - 1, y)) * 0.5, (at(x, y + 1) - at(x, y - 1)) * 0.5)
+    }
+}
+
+/// Fills `out` (row-major, `side` x `side`) with `img` at `(x0 + a, y0 + b)` minus
+/// [`GRAY_OFFSET`], for integers `a, b in 0..side`, by bilinear interpolation with shared weights.
+/// `None` when the block (with the extra column and row bilinear reads) leaves the image or a
+/// coordinate is not finite.
+fn sample_block(img: &GrayView<'_>, x0: f32, y0: f32, side: usize, out: &mut [f32]) -> Option<()> {
+    let (w, h) = img.size();
+    // NaN fails the comparisons; the casts below only see values in 0..w.
+    if !(x0 >= 0.0 && y0 >= 0.0 && x0 + (side as f32) < w as f32 && y0 + (side as f32) < h as f32) {
+        return None;
+    }
+    let (bx, by) = (x0 as usize, y0 as usize);
+    if bx + side >= w || by + side >= h {
+        return None;
+    }
+    let (fx, fy) = (x0 - bx as f32, y0 - by as f32);
+    let (w00, w10) = ((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy));
+    let (w01, w11) = ((1.0 - fx) * fy, fx * fy);
+    for (b, out_row) in out.chunks_exact_mut(side).take(side).enumerate() {
+        let r0 = img.row(by + b)?.get(bx..=bx + side)?;
+        let r1 = img.row(by + b + 1)?.get(bx..=bx + side)?;
+        for ((o, p0), p1) in out_row.iter_mut().zip(r0.windows(2)).zip(r1.windows(2)) {
+            let (a, b2) = (f32::from(p0[0]), f32::from(p0[1]));
+            let (c, d) = (f32::from(p1[0]), f32::from(p1[1]));
+            *o = w00 * a + w10 * b2 + w01 * c + w11 * d - GRAY_OFFSET;
+        }
+    }
+    Some(())
+}
+
+/// ZNCC of the template against `side_t` x `side_t` samples read from `block` (row stride
+/// `stride`) starting at `start`; `None` when the samples are flat.
+fn zncc(t: &WarpedTemplate, block: &[f32], stride: usize, start: usize) -> Option<f32> {
+    let n = t.side();
+    let (mut s1, mut s2, mut st) = (0.0f32, 0.0f32, 0.0f32);
+    for j in 0..n {
+        let row = block.get(start + j * stride..start + j * stride + n)?;
+        let trow = t.zero_mean.get(j * n..j * n + n)?;
+        for (&s, &tv) in row.iter().zip(trow) {
+            s1 += s;
+            s2 += s * s;
+            st += s * tv;
+        }
+    }
+    let len = (n * n) as f32;
+    let var = s2 - s1 * s1 / len;
+    // Less than ~0.05 gray levels of spread carries no correlation.
+    if var.is_nan() || var <= 1e-3 * len || t.norm.is_nan() || t.norm <= 0.0 {
+        return None;
+    }
+    // Rounding can push a perfect match a few ulps past 1.
+    Some((st / (libm::sqrtf(var) * t.norm)).clamp(-1.0, 1.0))
+}
+
+/// The integer search of step 2 of the module documentation: the best offset from the prediction
+/// (pixels, each axis in `-R..=R`) and its ZNCC.
+fn search(
+    t: &WarpedTemplate,
+    target: &GrayView<'_>,
+    predicted: (f32, f32),
+    params: &TrackParams,
+) -> Result<((isize, isize), f32), MatchError> {
+    let (h, r) = (params.half_size, params.search_radius);
+    let wside = 2 * (r + h) + 1;
+    let mut window = [0.0f32; MAX_WINDOW_SIDE * MAX_WINDOW_SIDE];
+    let reach = (r + h) as f32;
+    sample_block(target, predicted.0 - reach, predicted.1 - reach, wside, &mut window)
+        .ok_or(MatchError::NoCandidate)?;
+    let sside = 2 * r + 1;
+    let mut scores = [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE];
+    // Offsets are indices 0..sside into the score grid; the candidate's block starts there.
+    let score_at = |scores: &mut [f32], ix: usize, iy: usize| -> f32 {
+        let k = iy * sside + ix;
+        match scores.get(k) {
+            Some(&s) if s > f32::NEG_INFINITY => s,
+            _ => {
+                let s = zncc(t, &window, wside, iy * wside + ix).unwrap_or(-1.0);
+                if let Some(slot) = scores.get_mut(k) {
+                    *slot = s;
+                }
+                s
+            }
+        }
+    };
+    let step = params.search_step;
+    let k_max = r / step;
+    // Coarse pass on offsets `k * step`, `k in -k_max..=k_max` (the prediction itself included).
+    let coarse = |k: usize| r + k * step - k_max * step;
+    let mut best = (r, r, f32::NEG_INFINITY);
+    for ky in 0..=2 * k_max {
+        for kx in 0..=2 * k_max {
+            let (ix, iy) = (coarse(kx), coarse(ky));
+            let s = score_at(&mut scores, ix, iy);
+            if s > best.2 {
+                best = (ix, iy, s);
+            }
+        }
+    }
+    if let Some(margin) = params.min_peak_margin {
+        let second = second_peak(&scores, sside, k_max, step, r, (best.0, best.1));
+        if second > best.2 - margin {
+            return Err(MatchError::Ambiguous { best: best.2, second });
+        }
+    }
+    // Fine pass: every integer offset within `step - 1` of the coarse best.
+    let (cx, cy) = (best.0, best.1);
+    let reach_fine = step - 1;
+    for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
+        for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
+            let s = score_at(&mut scores, ix, iy);
+            if s > best.2 {
+                best = (ix, iy, s);
+            }
+        }
+    }
+    if best.2 <= -1.0 {
+        return Err(MatchError::NoCandidate);
+    }
+    // Indices are at most 2 * MAX_TRACK_SEARCH_RADIUS: the casts are exact.
+    Ok(((best.0 as isize - r as isize, best.1 as isize - r as isize), best.2))
+}
+
+/// The best coarse local maximum (over its 8 coarse neighbours) more than one coarse step from
+/// `best`; `-1` when there is none.
+fn second_peak(
+    scores: &[f32],
+    sside: usize,
+    k_max: usize,
+    step: usize,
+    r: usize,
+    best: (usize, usize),
+) -> f32 {
+    let at = |kx: isize, ky: isize| -> f32 {
+        if kx < 0 || ky < 0 || kx > 2 * k_max as isize || ky > 2 * k_max as isize {
+            return f32::NEG_INFINITY;
+        }
+        let (ix, iy) =
+            (r + kx as usize * step - k_max * step, r + ky as usize * step - k_max * step);
+        scores.get(iy * sside + ix).copied().unwrap_or(f32::NEG_INFINITY)
+    };
+    let mut second = -1.0f32;
+    let n = 2 * k_max as isize;
+    for ky in 0..=n {
+        for kx in 0..=n {
+            let (ix, iy) =
+                (r + kx as usize * step - k_max * step, r + ky as usize * step - k_max * step);
+            if ix.abs_diff(best.0) <= step && iy.abs_diff(best.1) <= step {
+                continue;
+            }
+            let s = at(kx, ky);
+            let is_peak = (-1..=1)
+                .all(|dy| (-1..=1).all(|dx| (dx == 0 && dy == 0) || at(kx + dx, ky + dy) <= s));
+            if is_peak && s > second {
+                second = s;
+            }
+        }
+    }
+    second
+}
+
+/// Inverse-compositional translation Lucas-Kanade from `start` (step 4 of the module
+/// documentation); the refined position and its ZNCC.
+fn refine(
+    t: &WarpedTemplate,
+    target: &GrayView<'_>,
+    start: (f32, f32),
+    params: &TrackParams,
+) -> Result<((f32, f32), f32), MatchError> {
+    let (n, side) = (t.grid_len(), t.side());
+    let mut gx = [0.0f32; MAX_GRID];
+    let mut gy = [0.0f32; MAX_GRID];
+    for k in 0..n {
+        let (a, b) = t.gradient(k % side, k / side);
+        if let (Some(x), Some(y)) = (gx.get_mut(k), gy.get_mut(k)) {
+            (*x, *y) = (a, b);
+        }
+    }
+    // Project the offset (the mean) and the gain (the template itself) out of both
+    // steepest-descent images: variable projection of `I(x + c) = g T(x) + b`.
+    let norm2 = t.norm * t.norm;
+    for g in [&mut gx, &mut gy] {
+        let mean = g.iter().take(n).sum::<f32>() / n as f32;
+        let mut coeff = 0.0f32;
+        for (v, z) in g.iter().zip(&t.zero_mean).take(n) {
+            coeff += (v - mean) * z;
+        }
+        coeff /= norm2;
+        for (v, z) in g.iter_mut().zip(&t.zero_mean).take(n) {
+            *v = *v - mean - coeff * z;
+        }
+    }
+    let (mut hxx, mut hxy, mut hyy) = (0.0f32, 0.0f32, 0.0f32);
+    for (x, y) in gx.iter().zip(&gy).take(n) {
+        hxx += x * x;
+        hxy += x * y;
+        hyy += y * y;
+    }
+    let det = hxx * hyy - hxy * hxy;
+    // Both directions must carry gradient (an edge alone slides along itself).
+    if det.is_nan() || det <= 1e-6 * (hxx + hyy) * (hxx + hyy) {
+        return Err(MatchError::RefinementFailed);
+    }
+    let half = t.half as f32;
+    let mut buf = [0.0f32; MAX_GRID];
+    let mut c = start;
+    for _ in 0..params.max_iterations {
+        sample_block(target, c.0 - half, c.1 - half, side, &mut buf)
+            .ok_or(MatchError::RefinementFailed)?;
+        let mean = buf.iter().take(n).sum::<f32>() / n as f32;
+        let ss: f32 = buf.iter().take(n).map(|v| (v - mean) * (v - mean)).sum();
+        let norm_i = libm::sqrtf(ss);
+        if norm_i.is_nan() || norm_i <= 0.0 {
+            return Err(MatchError::RefinementFailed);
+        }
+        let gain = t.norm / norm_i;
+        let (mut bx, mut by) = (0.0f32, 0.0f32);
+        for ((&v, &z), (&x, &y)) in buf.iter().zip(&t.zero_mean).zip(gx.iter().zip(&gy)).take(n) {
+            let err = (v - mean) * gain - z;
+            bx += x * err;
+            by += y * err;
+        }
+        let dx = (hyy * bx - hxy * by) / det;
+        let dy = (hxx * by - hxy * bx) / det;
+        c = (c.0 - dx, c.1 - dy);
+        let (sx, sy) = (c.0 - start.0, c.1 - start.1);
+        let shift2 = sx * sx + sy * sy;
+        if shift2.is_nan() || shift2 > params.max_refine_shift_px * params.max_refine_shift_px {
+            return Err(MatchError::RefinementFailed);
+        }
+        if dx * dx + dy * dy < params.epsilon_px * params.epsilon_px {
+            break;
+        }
+    }
+    sample_block(target, c.0 - half, c.1 - half, side, &mut buf)
+        .ok_or(MatchError::RefinementFailed)?;
+    let score = zncc(t, &buf, side, 0).ok_or(MatchError::RefinementFailed)?;
+    Ok((c, score))
+}
+
+/// Tracks the patch of `template_img` centred at `centre` into `target`, where it is predicted at
+/// `predicted` with the linear map `affine` (`d(uv_target) / d(uv_template)`, from the predicted
+/// motion). All coordinates are pixels, origin at the top-left pixel's centre. See the module
+/// documentation for the steps and their cost.
+///
+/// # Errors
+/// [`MatchError::InvalidParams`] (also for a singular `affine` or a non-finite position),
+/// [`MatchError::TemplateOutOfImage`], [`MatchError::FlatTemplate`], [`MatchError::NoCandidate`]
+/// (the search window leaves the target), [`MatchError::Ambiguous`],
+/// [`MatchError::RefinementFailed`] or [`MatchError::LowCorrelation`].
+pub fn track_patch(
+    template_img: &GrayView<'_>,
+    centre: (f32, f32),
+    affine: &Mat2,
+    target: &GrayView<'_>,
+    predicted: (f32, f32),
+    params: &TrackParams,
+) -> Result<PatchTrack, MatchError> {
+    let finite = centre.0.is_finite()
+        && centre.1.is_finite()
+        && predicted.0.is_finite()
+        && predicted.1.is_finite();
+    if !params.is_valid() || !finite {
+        return Err(MatchError::InvalidParams);
+    }
+    let a_inv = mat_inverse(affine).ok_or(MatchError::InvalidParams)?;
+    let t = WarpedTemplate::new(template_img, centre, &a_inv, params.half_size)
+        .ok_or(MatchError::TemplateOutOfImage)?;
+    let std_dev = t.norm / libm::sqrtf(t.grid_len() as f32);
+    if std_dev.is_nan() || std_dev < params.min_template_std {
+        return Err(MatchError::FlatTemplate { std_dev });
+    }
+    let ((ox, oy), best) = search(&t, target, predicted, params)?;
+    if best < params.min_zncc - HOPELESS_MARGIN {
+        return Err(MatchError::LowCorrelation { zncc: best });
+    }
+    // Offsets are at most MAX_TRACK_SEARCH_RADIUS: exact in f32.
+    let start = (predicted.0 + ox as f32, predicted.1 + oy as f32);
+    let (uv, zncc) = refine(&t, target, start, params)?;
+    if zncc.is_nan() || zncc < params.min_zncc {
+        return Err(MatchError::LowCorrelation { zncc });
+    }
+    let (dx, dy) = (uv.0 - predicted.0, uv.1 - predicted.1);
+    Ok(PatchTrack { uv, zncc, offset_px: libm::sqrtf(dx * dx + dy * dy) })
+}
