@@ -6,7 +6,11 @@
 //!   and firmware, the QEMU run of the firmware checked bit for bit against the host, and replays of
 //!   the real and synthetic data through the host simulator.
 //! - `firmware-wi [DATASET]`: only the QEMU check (frame 0 of DATASET, default 7-Scenes).
+//! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
+//!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
+//!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
 
+mod bench;
 mod ci;
 mod firmware;
 
@@ -17,8 +21,12 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("ci") => ci::run_all(),
         Some("firmware-wi") => ci::firmware_wi(args.get(1).map(String::as_str)),
+        Some("bench-frontend") => bench::run(&args[1..]),
         _ => {
-            eprintln!("usage: cargo xtask <ci | firmware-wi [DATASET]>");
+            eprintln!(
+                "usage: cargo xtask <ci | firmware-wi [DATASET] | bench-frontend [--dataset DIR] \
+                 [--frames N] [--json FILE] [--max-median INSN]>"
+            );
             return ExitCode::from(2);
         }
     };

@@ -128,6 +128,12 @@ impl<'a, P: Copy> ImageView<'a, P> {
         (self.width, self.height)
     }
 
+    /// The whole buffer: pixel `(x, y)` is `data()[y * stride + x]` for `x < width`,
+    /// `y < height` (elements between rows, or past the last one, are not pixels).
+    pub fn data(&self) -> &'a [P] {
+        self.data
+    }
+
     /// Row `y` (exactly `width` pixels), or `None` past the last row.
     pub fn row(&self, y: usize) -> Option<&'a [P]> {
         if y >= self.height {

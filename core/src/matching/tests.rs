@@ -536,13 +536,19 @@ fn track_bad_input_and_borders_do_not_panic() {
         track_patch(&fv, c, &IDENTITY, &dv, c, &p),
         Err(MatchError::FlatTemplate { std_dev }) if std_dev == 0.0
     ));
-    // Template with its margin must fit (5 px at h = 4); the window too (6 px at R = 1).
+    // Template with its margin must fit (5 px at h = 4); the search window too (6 px at R = 1).
     assert_eq!(
         track_patch(&sv, (4.0, 50.0), &IDENTITY, &dv, (50.0, 50.0), &p),
         Err(MatchError::TemplateOutOfImage)
     );
-    for edge in [(4.9, 50.0), (50.0, 234.0), (-500.0, 100.0), (314.5, 100.0)] {
-        assert_eq!(track_patch(&sv, c, &IDENTITY, &dv, edge, &p), Err(MatchError::NoCandidate));
+    let (p1, p0) = (TrackParams { search_radius: 1, ..p }, TrackParams { search_radius: 0, ..p });
+    for edge in [(4.4, 50.0), (50.0, 234.6), (-500.0, 100.0), (314.5, 100.0)] {
+        assert_eq!(track_patch(&sv, c, &IDENTITY, &dv, edge, &p1), Err(MatchError::NoCandidate));
+        // Without a search, Lucas-Kanade meets the border instead.
+        assert_eq!(
+            track_patch(&sv, c, &IDENTITY, &dv, edge, &p0),
+            Err(MatchError::RefinementFailed)
+        );
     }
     for bad in [(f32::NAN, 100.0), (100.0, f32::INFINITY)] {
         assert_eq!(track_patch(&sv, bad, &IDENTITY, &dv, c, &p), Err(MatchError::InvalidParams));
@@ -573,5 +579,5 @@ fn track_bad_input_and_borders_do_not_panic() {
     assert!(dist(r.uv, truth) < 0.1, "{r:?}");
     let tiny = [0u8, 255, 0, 255];
     let tv = GrayView::packed(&tiny, 2, 2).unwrap();
-    assert_eq!(track_patch(&sv, c, &IDENTITY, &tv, (0.5, 0.5), &p), Err(MatchError::NoCandidate));
+    assert_eq!(track_patch(&sv, c, &IDENTITY, &tv, (0.5, 0.5), &p1), Err(MatchError::NoCandidate));
 }

@@ -50,7 +50,6 @@
 
 use super::MatchError;
 use super::affine::{Mat2, mat_apply, mat_inverse};
-use super::patch::sample_bilinear;
 use crate::image::GrayView;
 
 /// Largest template half-size of [`track_patch`], pixels (13 x 13 templates).
@@ -63,8 +62,6 @@ pub const MAX_TRACK_SEARCH_RADIUS: usize = 12;
 const MAX_TEMPLATE_SIDE: usize = 2 * MAX_TRACK_HALF_SIZE + 3;
 /// Grid samples of the largest template (169).
 const MAX_GRID: usize = (2 * MAX_TRACK_HALF_SIZE + 1) * (2 * MAX_TRACK_HALF_SIZE + 1);
-/// Side of the largest search window.
-const MAX_WINDOW_SIDE: usize = 2 * (MAX_TRACK_SEARCH_RADIUS + MAX_TRACK_HALF_SIZE) + 1;
 /// Side of the largest score grid.
 const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_SEARCH_RADIUS + 1;
 
@@ -162,6 +159,47 @@ struct WarpedTemplate {
     norm: f32,
 }
 
+/// The template grid rounded to integers for the search, over every `sub`-th row and column.
+struct Quantized {
+    /// Rounded values (gray level minus 128, so in -128..=127), row-major, `count` per side.
+    values: [i16; MAX_GRID],
+    /// Samples per side (`h + 1`... `2h + 1`).
+    count: usize,
+    /// Grid step between samples, 1 or 2.
+    sub: usize,
+    /// `sum q` and `n sum q^2 - (sum q)^2` with `n = count^2` (exact in i64).
+    sum: i64,
+    var_n2: i64,
+}
+
+impl Quantized {
+    fn new(t: &WarpedTemplate, sub: usize) -> Self {
+        let n = t.side();
+        let count = (n - 1) / sub + 1;
+        let mut q = Self { values: [0; MAX_GRID], count, sub, sum: 0, var_n2: 0 };
+        let (mut qs, mut qss) = (0i64, 0i64);
+        let side = 2 * t.half + 3;
+        let mut k = 0;
+        for j in (0..n).step_by(sub) {
+            for i in (0..n).step_by(sub) {
+                let v = t.values.get((j + 1) * side + i + 1).copied().unwrap_or(0.0);
+                // Values are in -128..128: the cast saturates nothing.
+                let r = libm::roundf(v) as i16;
+                if let Some(slot) = q.values.get_mut(k) {
+                    *slot = r;
+                }
+                k += 1;
+                qs += i64::from(r);
+                qss += i64::from(r) * i64::from(r);
+            }
+        }
+        q.sum = qs;
+        // At most 169 * 169 * 128^2: far inside i64.
+        q.var_n2 = (count * count) as i64 * qss - qs * qs;
+        q
+    }
+}
+
 impl WarpedTemplate {
     fn new(img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2, half: usize) -> Option<Self> {
         let side = 2 * half + 3;
@@ -171,11 +209,32 @@ impl WarpedTemplate {
             zero_mean: [0.0; MAX_GRID],
             norm: 0.0,
         };
+        // A linear map sends the square's corners to the extremes: check them once.
         let m = (half + 1) as f32;
-        for (k, v) in t.values.iter_mut().take(side * side).enumerate() {
-            let q = ((k % side) as f32 - m, (k / side) as f32 - m);
-            let (dx, dy) = mat_apply(a_inv, q);
-            *v = sample_bilinear(img, centre.0 + dx, centre.1 + dy)? - GRAY_OFFSET;
+        let (w, h) = img.size();
+        let (x_max, y_max) = ((w - 1) as f32, (h - 1) as f32);
+        for (i, j) in [(-m, -m), (m, -m), (-m, m), (m, m)] {
+            let (dx, dy) = mat_apply(a_inv, (i, j));
+            let (x, y) = (centre.0 + dx, centre.1 + dy);
+            // NaN fails the comparisons.
+            if !(x >= 0.0 && y >= 0.0 && x < x_max && y < y_max) {
+                return None;
+            }
+        }
+        let (data, stride) = (img.data(), img.stride());
+        // Positions in 16.16 fixed point: a row's samples step by the map's first column in
+        // integers (no float-to-integer conversion per sample, the same on every target). The
+        // corners were checked in floating point and lie at most 0.5 px inside `0..w - 1`, so the
+        // 1/65536 px rounding of a step, times 15 steps, cannot leave the image.
+        let fixed = |v: f32| libm::roundf(v * FIXED_ONE) as i32;
+        let (step_x, step_y) = (fixed(a_inv[0][0]), fixed(a_inv[1][0]));
+        for (j, out_row) in t.values.chunks_exact_mut(side).take(side).enumerate() {
+            let (dx, dy) = mat_apply(a_inv, (-m, j as f32 - m));
+            let (mut x, mut y) = (fixed(centre.0 + dx), fixed(centre.1 + dy));
+            for v in out_row.iter_mut() {
+                *v = bilinear_fixed(data, stride, x, y) - GRAY_OFFSET;
+                (x, y) = (x.wrapping_add(step_x), y.wrapping_add(step_y));
+            }
         }
         let n = 2 * half + 1;
         let mut sum = 0.0f32;
@@ -206,13 +265,52 @@ impl WarpedTemplate {
         self.side() * self.side()
     }
 
-    /// Central-difference gradient at grid index `(i, j)` (0-based, margin excluded).
-    fn gradient(&self, i: usize, j: usize) -> (f32, f32) {
-        let side = 2 * self.half + 3;
-        let at = |x: usize, y: usize| self.values.get(y * side + x).copied().unwrap_or(0.0);
-        let (x, y) = (i + 1, j + 1);
-        ((at(x + 1, y) - at(x - 1, y)) * 0.5, (at(x, y + 1) - at(x, y - 1)) * 0.5)
+    /// Central-difference gradients over the grid (row-major, margin excluded) into `gx`, `gy`.
+    fn gradients(&self, gx: &mut [f32; MAX_GRID], gy: &mut [f32; MAX_GRID]) {
+        let (n, side) = (self.side(), 2 * self.half + 3);
+        for j in 0..n {
+            let (Some(up), Some(mid), Some(down)) = (
+                self.values.get(j * side..j * side + side),
+                self.values.get((j + 1) * side..(j + 1) * side + side),
+                self.values.get((j + 2) * side..(j + 2) * side + side),
+            ) else {
+                return;
+            };
+            let (Some(rx), Some(ry)) = (gx.get_mut(j * n..j * n + n), gy.get_mut(j * n..j * n + n))
+            else {
+                return;
+            };
+            let (up, down) = (up.get(1..).unwrap_or(&[]), down.get(1..).unwrap_or(&[]));
+            let rows = rx.iter_mut().zip(ry.iter_mut()).zip(mid.windows(3)).zip(up).zip(down);
+            for ((((x, y), lcr), &u), &d) in rows {
+                if let [l, _, r] = *lcr {
+                    (*x, *y) = ((r - l) * 0.5, (d - u) * 0.5);
+                }
+            }
+        }
     }
+}
+
+/// One in 16.16 fixed point.
+const FIXED_ONE: f32 = 65536.0;
+
+/// Bilinear sample of the image buffer `data` (rows `stride` apart) at the 16.16 fixed-point
+/// position `(x, y)`, which the caller has checked lies in `[0, w - 1) x [0, h - 1)`; a read past
+/// the buffer (impossible then) gives 0.
+fn bilinear_fixed(data: &[u8], stride: usize, x: i32, y: i32) -> f32 {
+    // Non-negative by the caller's check; a negative value would read index 0's neighbourhood.
+    let (x0, y0) = ((x >> 16).max(0) as usize, (y >> 16).max(0) as usize);
+    let fx = (x & 0xFFFF) as f32 * (1.0 / FIXED_ONE);
+    let fy = (y & 0xFFFF) as f32 * (1.0 / FIXED_ONE);
+    let i = y0 * stride + x0;
+    let pair = |k: usize| match data.get(k..k + 2) {
+        Some(&[a, b]) => (f32::from(a), f32::from(b)),
+        _ => (0.0, 0.0),
+    };
+    let ((p00, p10), (p01, p11)) = (pair(i), pair(i + stride));
+    let top = p00 + fx * (p10 - p00);
+    let bottom = p01 + fx * (p11 - p01);
+    top + fy * (bottom - top)
 }
 
 /// Fills `out` (row-major, `side` x `side`) with `img` at `(x0 + a, y0 + b)` minus
@@ -268,37 +366,83 @@ fn zncc(t: &WarpedTemplate, block: &[f32], stride: usize, start: usize) -> Optio
     Some((st / (libm::sqrtf(var) * t.norm)).clamp(-1.0, 1.0))
 }
 
-/// The integer search of step 2 of the module documentation: the best offset from the prediction
-/// (pixels, each axis in `-R..=R`) and its ZNCC.
+/// ZNCC of the rounded template `q` against the target's pixels of the block whose top-left pixel
+/// is `(x0, y0)` (inside the image: checked by the caller), taking every `q.sub`-th row and
+/// column, in exact integer sums; `None` when either is flat.
+fn zncc_pixels(q: &Quantized, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<f32> {
+    let (n, sub) = (q.count, q.sub);
+    // |sums| <= 169 * 255 * 128: exact in i32.
+    let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
+    for j in 0..n {
+        let start = (y0 + j * sub) * stride + x0;
+        let row = data.get(start..start + (n - 1) * sub + 1)?;
+        let trow = q.values.get(j * n..j * n + n)?;
+        // The contiguous case separately: it compiles to vector code on the host.
+        let (a, b, c) =
+            if sub == 1 { sums(row.iter(), trow) } else { sums(row.iter().step_by(sub), trow) };
+        s1 += a;
+        s2 += b;
+        st += c;
+    }
+    let len = (n * n) as i64;
+    let (s1, s2, st) = (i64::from(s1), i64::from(s2), i64::from(st));
+    let var_s = len * s2 - s1 * s1;
+    let cov = len * st - s1 * q.sum;
+    // Less than ~0.05 gray levels of spread carries no correlation.
+    if var_s * 1000 <= len * len || q.var_n2 <= 0 {
+        return None;
+    }
+    // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
+    let denom = libm::sqrtf(var_s as f32) * libm::sqrtf(q.var_n2 as f32);
+    Some((cov as f32 / denom).clamp(-1.0, 1.0))
+}
+
+/// `(sum s, sum s^2, sum s q)` over the pixels `row` and template values `q`, in i32.
+fn sums<'a>(row: impl Iterator<Item = &'a u8>, q: &[i16]) -> (i32, i32, i32) {
+    let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
+    for (&s, &v) in row.zip(q) {
+        let s = i32::from(s);
+        s1 += s;
+        s2 += s * s;
+        st += s * i32::from(v);
+    }
+    (s1, s2, st)
+}
+
+/// The integer search of step 2 of the module documentation: the best pixel (integer
+/// coordinates, within `R` of the rounded prediction on each axis) and its ZNCC.
 fn search(
     t: &WarpedTemplate,
     target: &GrayView<'_>,
     predicted: (f32, f32),
     params: &TrackParams,
-) -> Result<((isize, isize), f32), MatchError> {
+) -> Result<((usize, usize), f32), MatchError> {
     let (h, r) = (params.half_size, params.search_radius);
-    let wside = 2 * (r + h) + 1;
-    let mut window = [0.0f32; MAX_WINDOW_SIDE * MAX_WINDOW_SIDE];
+    let (w, img_h) = target.size();
+    let (px, py) = (libm::roundf(predicted.0), libm::roundf(predicted.1));
     let reach = (r + h) as f32;
-    sample_block(target, predicted.0 - reach, predicted.1 - reach, wside, &mut window)
-        .ok_or(MatchError::NoCandidate)?;
+    // NaN fails the comparisons; the casts below only see values inside the image.
+    let inside = px - reach >= 0.0
+        && py - reach >= 0.0
+        && px + reach <= (w - 1) as f32
+        && py + reach <= (img_h - 1) as f32;
+    if !inside {
+        return Err(MatchError::NoCandidate);
+    }
+    // Top-left pixel of the candidate at score index (0, 0).
+    let (x0, y0) = ((px - reach) as usize, (py - reach) as usize);
+    let (data, stride) = (target.data(), target.stride());
     let sside = 2 * r + 1;
-    let mut scores = [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE];
-    // Offsets are indices 0..sside into the score grid; the candidate's block starts there.
-    let score_at = |scores: &mut [f32], ix: usize, iy: usize| -> f32 {
-        let k = iy * sside + ix;
-        match scores.get(k) {
-            Some(&s) if s > f32::NEG_INFINITY => s,
-            _ => {
-                let s = zncc(t, &window, wside, iy * wside + ix).unwrap_or(-1.0);
-                if let Some(slot) = scores.get_mut(k) {
-                    *slot = s;
-                }
-                s
-            }
-        }
-    };
     let step = params.search_step;
+    // The coarse pass correlates every other row and column when it steps over pixels (a
+    // quarter of the work; enough to rank candidates 2 px apart), the fine pass all of them.
+    let full = Quantized::new(t, 1);
+    let halved = (step > 100).then(|| Quantized::new(t, 2));
+    let coarse_q = halved.as_ref().unwrap_or(&full);
+    let score = |q: &Quantized, ix: usize, iy: usize| {
+        zncc_pixels(q, data, stride, (x0 + ix, y0 + iy)).unwrap_or(-1.0)
+    };
+    let mut scores = [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE];
     let k_max = r / step;
     // Coarse pass on offsets `k * step`, `k in -k_max..=k_max` (the prediction itself included).
     let coarse = |k: usize| r + k * step - k_max * step;
@@ -306,7 +450,10 @@ fn search(
     for ky in 0..=2 * k_max {
         for kx in 0..=2 * k_max {
             let (ix, iy) = (coarse(kx), coarse(ky));
-            let s = score_at(&mut scores, ix, iy);
+            let s = score(coarse_q, ix, iy);
+            if let Some(slot) = scores.get_mut(iy * sside + ix) {
+                *slot = s;
+            }
             if s > best.2 {
                 best = (ix, iy, s);
             }
@@ -318,22 +465,24 @@ fn search(
             return Err(MatchError::Ambiguous { best: best.2, second });
         }
     }
-    // Fine pass: every integer offset within `step - 1` of the coarse best.
-    let (cx, cy) = (best.0, best.1);
-    let reach_fine = step - 1;
-    for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
-        for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
-            let s = score_at(&mut scores, ix, iy);
-            if s > best.2 {
-                best = (ix, iy, s);
+    if step > 1 {
+        // Fine pass, full template: every integer offset within `step - 1` of the coarse best.
+        let (cx, cy) = (best.0, best.1);
+        best.2 = f32::NEG_INFINITY;
+        let reach_fine = step - 1;
+        for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
+            for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
+                let s = score(&full, ix, iy);
+                if s > best.2 {
+                    best = (ix, iy, s);
+                }
             }
         }
     }
     if best.2 <= -1.0 {
         return Err(MatchError::NoCandidate);
     }
-    // Indices are at most 2 * MAX_TRACK_SEARCH_RADIUS: the casts are exact.
-    Ok(((best.0 as isize - r as isize, best.1 as isize - r as isize), best.2))
+    Ok(((x0 + h + best.0, y0 + h + best.1), best.2))
 }
 
 /// The best coarse local maximum (over its 8 coarse neighbours) more than one coarse step from
@@ -385,12 +534,7 @@ fn refine(
     let (n, side) = (t.grid_len(), t.side());
     let mut gx = [0.0f32; MAX_GRID];
     let mut gy = [0.0f32; MAX_GRID];
-    for k in 0..n {
-        let (a, b) = t.gradient(k % side, k / side);
-        if let (Some(x), Some(y)) = (gx.get_mut(k), gy.get_mut(k)) {
-            (*x, *y) = (a, b);
-        }
-    }
+    t.gradients(&mut gx, &mut gy);
     // Project the offset (the mean) and the gain (the template itself) out of both
     // steepest-descent images: variable projection of `I(x + c) = g T(x) + b`.
     let norm2 = t.norm * t.norm;
@@ -485,12 +629,17 @@ pub fn track_patch(
     if std_dev.is_nan() || std_dev < params.min_template_std {
         return Err(MatchError::FlatTemplate { std_dev });
     }
-    let ((ox, oy), best) = search(&t, target, predicted, params)?;
-    if best < params.min_zncc - HOPELESS_MARGIN {
-        return Err(MatchError::LowCorrelation { zncc: best });
-    }
-    // Offsets are at most MAX_TRACK_SEARCH_RADIUS: exact in f32.
-    let start = (predicted.0 + ox as f32, predicted.1 + oy as f32);
+    let start = if params.search_radius == 0 {
+        // No search: Lucas-Kanade from the sub-pixel prediction itself.
+        predicted
+    } else {
+        let ((x, y), best) = search(&t, target, predicted, params)?;
+        if best < params.min_zncc - HOPELESS_MARGIN {
+            return Err(MatchError::LowCorrelation { zncc: best });
+        }
+        // Pixel coordinates are far below 2^24: exact in f32.
+        (x as f32, y as f32)
+    };
     let (uv, zncc) = refine(&t, target, start, params)?;
     if zncc.is_nan() || zncc < params.min_zncc {
         return Err(MatchError::LowCorrelation { zncc });

@@ -29,8 +29,8 @@
 //!
 //! Everything is inline, no heap: the Hessian detector, a [`Keyframe`] (gray image copy and
 //! landmarks), the feature and correspondence scratch vectors. `size_of::<QvgaFrontend>()` is
-//! 217,552 bytes (detector 103,272, keyframe 89,144, features 10,248, correspondences ~14 KB) and
-//! `size_of::<VgaFrontend>()` 538,832 bytes, on a 64-bit host (unit-tested). [`Frontend::new`] is
+//! 217,560 bytes (detector 103,272, keyframe 89,144, features 10,248, correspondences ~14 KB) and
+//! `size_of::<VgaFrontend>()` 538,840 bytes, on a 64-bit host (unit-tested). [`Frontend::new`] is
 //! `const`: place it in a `static` on the board, box it (or build it on a big stack) on a host.
 
 use core::fmt;
@@ -46,7 +46,9 @@ use super::{
 use crate::features::{FeatureError, FeatureVec, HessianDetector};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
-use crate::matching::{IDENTITY, Mat2, MatchParams, match_region, track_patch};
+use crate::matching::{
+    IDENTITY, Mat2, MatchError, MatchParams, TrackParams, match_region, track_patch,
+};
 
 pub use super::frontend_params::FrontendParams;
 
@@ -447,7 +449,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         }
         summary.start_t_cw = start.unwrap_or(*predicted_t_cw);
         corrs.clear();
-        ctx.track(&summary.start_t_cw, Matcher::Patch(&p.track), p.max_landmarks, corrs);
+        ctx.track(&summary.start_t_cw, Matcher::Patch(&p.track), p.max_tracked, corrs);
         summary.matches = corrs.len();
         summary
     }
@@ -476,7 +478,7 @@ fn guide_pose(
 /// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.
 #[derive(Clone, Copy)]
 enum Matcher<'a> {
-    Patch(&'a crate::matching::TrackParams),
+    Patch(&'a TrackParams),
     Bank(&'a crate::matching::MatchParams),
 }
 
@@ -518,7 +520,19 @@ impl<const W: usize, const H: usize> MatchContext<'_, W, H> {
             let gray = &self.frame.gray;
             let matched = match matcher {
                 Matcher::Patch(t) => {
-                    track_patch(self.kf_img, lm.uv_kf, &affine, gray, (uv.x, uv.y), t).map(|m| m.uv)
+                    let pred = (uv.x, uv.y);
+                    track_patch(self.kf_img, lm.uv_kf, &affine, gray, pred, t)
+                        .or_else(|e| match e {
+                            // Lucas-Kanade alone missed: one search at radius 1, then again.
+                            MatchError::RefinementFailed | MatchError::LowCorrelation { .. }
+                                if t.search_radius == 0 =>
+                            {
+                                let wider = TrackParams { search_radius: 1, ..*t };
+                                track_patch(self.kf_img, lm.uv_kf, &affine, gray, pred, &wider)
+                            }
+                            e => Err(e),
+                        })
+                        .map(|m| m.uv)
                 }
                 Matcher::Bank(m) => {
                     let params = MatchParams { initial_affine: affine, ..*m };

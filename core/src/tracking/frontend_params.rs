@@ -39,6 +39,10 @@ pub struct FrontendParams {
     pub max_relative_depth_step: f32,
     /// Landmarks per keyframe at most (bounds the per-frame matching cost). Default 200.
     pub max_landmarks: usize,
+    /// Each frame stops matching once this many landmarks matched (they come in the keyframe's
+    /// bucketed order, so they still spread over the image). Bounds the per-frame cost.
+    /// Default 200.
+    pub max_tracked: usize,
     /// A keyframe needs at least this many landmarks. Default 30.
     pub min_keyframe_landmarks: usize,
     /// Tracking needs at least this many matches. Default 12.
@@ -75,6 +79,7 @@ impl FrontendParams {
         depth_max_m: 4.0,
         max_relative_depth_step: 0.05,
         max_landmarks: 200,
+        max_tracked: 200,
         min_keyframe_landmarks: 30,
         min_matches: 12,
         min_inliers: 12,
@@ -98,6 +103,7 @@ impl FrontendParams {
             && self.depth_min_m < self.depth_max_m
             && pos(self.max_relative_depth_step)
             && self.max_landmarks > 0
+            && self.max_tracked > 0
             && self.guide_landmarks >= 3
             && self.min_guide_inliers >= 3
             && self.guide.is_valid()

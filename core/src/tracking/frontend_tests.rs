@@ -173,6 +173,6 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     {
         assert_eq!(core::mem::size_of::<Keyframe<320, 240>>(), 89_144);
         assert_eq!(core::mem::size_of::<Keyframe<640, 480>>(), 319_544);
-        assert_eq!((qvga, vga), (217_552, 538_832));
+        assert_eq!((qvga, vga), (217_560, 538_840));
     }
 }
