@@ -11,6 +11,8 @@
 //! - [`features`]: the Fast-Hessian detector on a rolling integral buffer, and grid bucketing.
 //! - [`matching`]: region matching under a bank of affine transforms, refined by affine
 //!   Lucas-Kanade, with a forward-backward check.
+//! - [`map`]: fixed-capacity arenas of keyframes and landmarks with typed, generation-checked ids,
+//!   and the keyframes' observations.
 //! - [`tracking`]: robust SE(3) pose estimation (LM with Huber, RANSAC on 3-point sets), the
 //!   constant-velocity motion model.
 //! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
@@ -28,5 +30,6 @@ pub mod features;
 pub mod frame;
 pub mod geometry;
 pub mod image;
+pub mod map;
 pub mod matching;
 pub mod tracking;

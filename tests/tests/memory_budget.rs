@@ -12,7 +12,12 @@ use ferroslam_core::features::{FeatureVec, QvgaHessianDetector, VgaHessianDetect
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
-use ferroslam_core::tracking::{InlierMask, MotionModel, PoseEstimate, QvgaFrontend, VgaFrontend};
+use ferroslam_core::map::{BoardMap, KeyFrame, Landmark, Observation};
+use ferroslam_core::tracking::sbi::SmallImage;
+use ferroslam_core::tracking::{
+    BoardLocalMap, InlierMask, MotionModel, PoseEstimate, QvgaFrontend, TrackedLandmark,
+    VgaFrontend,
+};
 
 /// `size_of` of every type the budget table may name.
 fn measured() -> BTreeMap<&'static str, usize> {
@@ -35,6 +40,13 @@ fn measured() -> BTreeMap<&'static str, usize> {
         ("tracking::MotionModel", size_of::<MotionModel>()),
         ("tracking::QvgaFrontend", size_of::<QvgaFrontend>()),
         ("tracking::VgaFrontend", size_of::<VgaFrontend>()),
+        ("tracking::TrackedLandmark", size_of::<TrackedLandmark>()),
+        ("tracking::BoardLocalMap", size_of::<BoardLocalMap>()),
+        ("tracking::sbi::SmallImage", size_of::<SmallImage>()),
+        ("map::Observation", size_of::<Observation>()),
+        ("map::Landmark", size_of::<Landmark>()),
+        ("map::KeyFrame", size_of::<KeyFrame>()),
+        ("map::BoardMap", size_of::<BoardMap>()),
     ])
 }
 
@@ -58,6 +70,9 @@ fn documented(text: &str) -> Vec<(String, usize)> {
 
 #[test]
 fn core_structure_sizes_match_the_budget_file() {
+    for (name, bytes) in measured() {
+        println!("{name}: {bytes}");
+    }
     // The table documents the host (64-bit) sizes; views and frames hold pointers and are smaller on
     // the 32-bit Cortex-M, buffers are the same.
     let path = ferroslam_tests::workspace_root().join("memory-budget.md");

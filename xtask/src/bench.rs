@@ -63,26 +63,25 @@ use crate::ci::{SEVEN_SCENES, root};
 /// pattern matching both a function and one it calls (nesting, recursion, several instances of a
 /// generic) does not count the callee twice. A stage matching nothing costs 0 (the run prints a
 /// note). Stages are inclusive, not a partition: `keyframe` contains `detector`, `matching`
-/// contains `track_patch`, `bank` and `guide`, and `pose` includes the guides' pose.
+/// contains `track_patch`, `bank` and `guide_pose`, and `pose` includes the guides' pose.
 ///
 /// Only functions that exist in the binary can be seen: an inlined function's instructions belong
-/// to its caller. Today `HessianDetector::detect` and `Keyframe::rebuild` are inlined into
-/// `Frontend::make_keyframe` and `Frontend::match_landmarks` into `Frontend::process`, so their
-/// out-of-line callees stand in beside them (the patterns keep the inlined names, which take over
-/// once they are out of line again, e.g. with `#[inline(never)]`). `detector` thus misses the
-/// inlined part of `detect` (a few percent of it), which `keyframe` still counts.
+/// to its caller, and where a function is inlined its out-of-line callees stand in beside it (a
+/// pattern keeps the inlined name, which takes over once it is out of line again). The run prints a
+/// note for a stage that matched nothing.
 const STAGES: &[(&str, &str)] = &[
     (
         "detector",
         "HessianDetector<*>::detect|features::filter::Taps::derivatives\
          |features::hessian::candidate|features::bucket::GridBuckets::*",
     ),
-    ("keyframe", "Frontend<*>::make_keyframe|Keyframe<*>::rebuild"),
-    ("matching", "Frontend<*>::match_landmarks|MatchContext<*>::track|frontend::guide_pose"),
+    ("keyframe", "Frontend<*>::make_keyframe"),
+    ("matching", "Frontend<*>::match_landmarks"),
     ("track_patch", "matching::track::track_patch"),
     ("bank", "matching::region::match_region"),
-    ("guide", "frontend::guide_pose"),
+    ("guide_pose", "frontend_match::guide_pose"),
     ("pose", "tracking::ransac::track_pose"),
+    ("small_image", "sbi::SmallImage::build|sbi::estimate_rotation"),
 ];
 
 /// The stage that tells frames which ran the detector (keyframe attempts) from tracking-only

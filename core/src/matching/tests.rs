@@ -561,7 +561,8 @@ fn track_bad_input_and_borders_do_not_panic() {
         TrackParams { half_size: MAX_TRACK_HALF_SIZE + 1, ..p },
         TrackParams { search_radius: MAX_TRACK_SEARCH_RADIUS + 1, ..p },
         TrackParams { search_step: 0, ..p },
-        TrackParams { search_step: 5, ..p },
+        TrackParams { search_step: 9, ..p },
+        TrackParams { search_radius: 9, search_step: 1, ..p },
         TrackParams { min_zncc: f32::NAN, ..p },
         TrackParams { max_refine_shift_px: 0.0, ..p },
     ] {

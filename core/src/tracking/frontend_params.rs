@@ -1,29 +1,34 @@
-//! [`FrontendParams`]: every tunable of the odometry front end, with `const` defaults.
+//! [`FrontendParams`]: every tunable of the front end, with `const` defaults.
 
 use super::PoseParams;
-use super::keyframe::LandmarkFilter;
 use crate::config::Tunables;
 use crate::features::HessianParams;
 use crate::matching::{MatchParams, TrackParams};
 
 /// Tunables of [`Frontend`](super::frontend::Frontend). Distances in pixels are at the processing
-/// resolution.
+/// resolution (QVGA on the board).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrontendParams {
     /// Feature detection for new keyframes. Default: [`HessianParams::default`] with the
     /// threshold lowered from 100 to 30 (at 100, QVGA Kinect frames of 7-Scenes give only ~40
     /// landmarks per keyframe; at 30 about 130).
     pub hessian: HessianParams,
-    /// Guide stage: the first `guide_landmarks` landmarks tracked from the motion-model
-    /// prediction, with a wide search. Default [`TrackParams::GUIDE`].
+    /// Guide stage: `guide_landmarks` landmarks tracked from the motion-model prediction with a
+    /// wide search. Default [`TrackParams::GUIDE`].
     pub guide: TrackParams,
-    /// Final stage: every landmark tracked from the guides' pose. Default [`TrackParams::FINE`].
+    /// Guide stage again, when the first gave no pose: a wider search. Default
+    /// [`TrackParams::GUIDE_WIDE`].
+    pub guide_wide: TrackParams,
+    /// Final stage: every selected landmark tracked from the guides' pose. Default
+    /// [`TrackParams::FINE`].
     pub track: TrackParams,
     /// Recovery: the affine-bank region matching of the guide landmarks, used when the guides
-    /// give no pose (its `initial_affine` is replaced per landmark by the map the predicted
-    /// motion induces). Default [`MatchParams::DEFAULT`].
+    /// give no pose (its `initial_affine` is replaced per landmark by the map the predicted motion
+    /// induces). Default: [`MatchParams::DEFAULT`] with a 9 x 9 template (the landmark templates
+    /// are 16 x 16 pixels) and no forward-backward check (it would search inside the template).
     pub matching: MatchParams,
-    /// Landmarks matched in the guide stage (and in a recovery). Default 24.
+    /// Landmarks matched in the guide stage (and in a recovery), spread over a 4 x 3 grid.
+    /// Default 24.
     pub guide_landmarks: usize,
     /// The guides' pose is used when it has at least this many inliers. Default 8.
     pub min_guide_inliers: usize,
@@ -34,59 +39,90 @@ pub struct FrontendParams {
     pub depth_min_m: f32,
     /// Farthest usable depth, metres; default [`Tunables::depth_max_m`]'s default.
     pub depth_max_m: f32,
-    /// A keyframe feature is dropped when a neighbour 2 pixels away differs in depth by more than
-    /// this fraction of its depth, or has none (occlusion edges). Default 0.05.
+    /// A feature is not made a landmark when a neighbour 2 pixels away differs in depth by more
+    /// than this fraction of its depth, or has none (occlusion edges). Default 0.05.
     pub max_relative_depth_step: f32,
-    /// Landmarks per keyframe at most (bounds the per-frame matching cost). Default 200.
-    pub max_landmarks: usize,
-    /// Each frame stops matching once this many landmarks matched (they come in the keyframe's
-    /// bucketed order, so they still spread over the image). Bounds the per-frame cost.
-    /// Default 200.
+    /// New landmarks one keyframe creates at most. Default 200.
+    pub max_new_landmarks: usize,
+    /// Landmarks matched per frame at most, spread over an 8 x 6 grid (bounds the per-frame
+    /// cost). Default 200.
     pub max_tracked: usize,
-    /// A keyframe needs at least this many landmarks. Default 30.
+    /// A keyframe that starts (or restarts) tracking needs at least this many landmarks.
+    /// Default 30.
     pub min_keyframe_landmarks: usize,
     /// Tracking needs at least this many matches. Default 12.
     pub min_matches: usize,
     /// A tracked pose needs at least this many inliers. Default 12.
     pub min_inliers: usize,
-    /// Keyframe rule: new keyframe when inliers `<` this fraction of the keyframe's landmarks.
-    /// Default 0.5.
+    /// Keyframe rule: new keyframe when the inliers fall below this fraction of the inliers the
+    /// frame after the last keyframe had. Default 0.7.
     pub keyframe_inlier_ratio: f32,
-    /// Keyframe rule: new keyframe when inliers `<` this. Default 40.
+    /// Keyframe rule: new keyframe when inliers `<` this. Default 80.
     pub keyframe_min_inliers: usize,
-    /// Keyframe rule: new keyframe when the camera is farther than this from the keyframe,
+    /// Keyframe rule: new keyframe when the camera is farther than this from the last keyframe,
     /// metres. Default 0.25.
     pub keyframe_max_translation_m: f32,
-    /// Keyframe rule: new keyframe when the camera has turned more than this from the keyframe,
-    /// radians. Default 0.26 (15 degrees).
+    /// Keyframe rule: new keyframe when the camera has turned more than this from the last
+    /// keyframe, radians. Default 0.26 (15 degrees).
     pub keyframe_max_rotation_rad: f32,
+    /// A keyframe feature within this distance of a tracked landmark's pixel makes no new
+    /// landmark (it is most likely the same point). Default 6 pixels.
+    pub new_landmark_min_distance_px: f32,
+    /// At a keyframe, a tracked landmark whose warp from its anchoring frame has an entry of
+    /// `A - I` beyond this is re-anchored (template re-taken). Default 0.12.
+    pub reanchor_max_warp: f32,
+    /// Odometry mode: fuse each inlier's measured depth into its landmark's position (an
+    /// inverse-variance running mean); off when a back end refines positions. Default `true`.
+    pub fuse_depth: bool,
+    /// Depth fusion stops adding weight after about this many measurements at the landmark's
+    /// depth, so a landmark keeps following new evidence. Default 20.
+    pub max_fused_measurements: f32,
+    /// A tracked landmark is dropped when it was visible at least `cull_min_visible` times and
+    /// found in less than this fraction of them. Default 0.3.
+    pub cull_min_found_ratio: f32,
+    /// See `cull_min_found_ratio`. Default 10.
+    pub cull_min_visible: u16,
+    /// A tracked landmark not found for this many frames is dropped. Default 60.
+    pub cull_max_unseen_frames: u32,
 }
 
 impl FrontendParams {
-    /// The defaults, documented per field; matching and pose values equal their own `Default`s,
-    /// detection too except its threshold (a unit test checks it).
+    /// The defaults, documented per field; matching and pose values equal their own `Default`s
+    /// except where a field's documentation says otherwise (a unit test checks it).
     pub const DEFAULT: Self = Self {
         // 30 instead of the detector's 100: at QVGA on 7-Scenes, 100 left ~40 landmarks per
         // keyframe and lost 38 of the first 100 frames; 30 gives ~130 and loses none.
         hessian: HessianParams { threshold: 30.0, ..HessianParams::DEFAULT },
         guide: TrackParams::GUIDE,
+        guide_wide: TrackParams::GUIDE_WIDE,
         track: TrackParams::FINE,
-        matching: MatchParams::DEFAULT,
+        matching: MatchParams {
+            half_size: 4,
+            forward_backward_max_px: None,
+            ..MatchParams::DEFAULT
+        },
         guide_landmarks: 24,
         min_guide_inliers: 8,
         pose: PoseParams::DEFAULT,
         depth_min_m: 0.3,
         depth_max_m: 4.0,
         max_relative_depth_step: 0.05,
-        max_landmarks: 200,
+        max_new_landmarks: 200,
         max_tracked: 200,
         min_keyframe_landmarks: 30,
         min_matches: 12,
         min_inliers: 12,
-        keyframe_inlier_ratio: 0.5,
-        keyframe_min_inliers: 40,
+        keyframe_inlier_ratio: 0.7,
+        keyframe_min_inliers: 80,
         keyframe_max_translation_m: 0.25,
         keyframe_max_rotation_rad: 0.26,
+        new_landmark_min_distance_px: 6.0,
+        reanchor_max_warp: 0.12,
+        fuse_depth: true,
+        max_fused_measurements: 20.0,
+        cull_min_found_ratio: 0.3,
+        cull_min_visible: 10,
+        cull_max_unseen_frames: 60,
     };
 
     /// These parameters with the depth range of `tunables`.
@@ -102,29 +138,21 @@ impl FrontendParams {
             && pos(self.depth_max_m)
             && self.depth_min_m < self.depth_max_m
             && pos(self.max_relative_depth_step)
-            && self.max_landmarks > 0
             && self.max_tracked > 0
             && self.guide_landmarks >= 3
             && self.min_guide_inliers >= 3
             && self.guide.is_valid()
+            && self.guide_wide.is_valid()
             && self.track.is_valid()
             && self.keyframe_inlier_ratio.is_finite()
             && pos(self.keyframe_max_translation_m)
             && pos(self.keyframe_max_rotation_rad)
+            && self.new_landmark_min_distance_px.is_finite()
+            && pos(self.reanchor_max_warp)
+            && pos(self.max_fused_measurements)
+            && self.cull_min_found_ratio.is_finite()
             && self.pose.is_valid()
             && self.hessian.validate().is_ok()
-    }
-
-    /// The keyframe landmark filter these parameters describe.
-    pub(crate) fn landmark_filter(&self) -> LandmarkFilter {
-        LandmarkFilter {
-            depth_min_m: self.depth_min_m,
-            depth_max_m: self.depth_max_m,
-            max_relative_depth_step: self.max_relative_depth_step,
-            discontinuity_radius_px: 2,
-            border_px: self.matching.half_size as f32 + 2.0,
-            max_landmarks: self.max_landmarks,
-        }
     }
 }
 

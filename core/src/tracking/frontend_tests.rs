@@ -86,19 +86,28 @@ fn pose_at(k: usize) -> Pose {
     )
 }
 
+/// A map small enough for tests yet larger than one keyframe's needs.
+type TestMap = crate::map::Map<16, 2048>;
+
+fn new_map() -> Box<TestMap> {
+    Box::default()
+}
+
 #[test]
 fn tracks_a_known_motion_to_a_centimetre() {
     let cam = camera();
     let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
     let mut last_err = f32::INFINITY;
     for k in 0..12 {
         let truth = pose_at(k);
         let (g, d) = render(&truth);
-        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam).unwrap();
+        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
         assert!(r.tracked, "frame {k}: {r:?}");
         assert_eq!(r.state, FrontendState::Tracking);
         if k > 0 {
             assert!(r.inliers >= 30, "frame {k}: {r:?}");
+            assert_eq!(r.guide_stage, GuideStage::MotionModel, "frame {k}");
         }
         // The first frame defines the world; the truth starts at the identity too.
         last_err = (r.t_wc.translation.vector - truth.translation.vector).norm();
@@ -110,48 +119,111 @@ fn tracks_a_known_motion_to_a_centimetre() {
     let stats = fe.stats();
     assert_eq!((stats.frames, stats.tracked_frames, stats.lost_frames), (12, 12, 0));
     assert!(stats.keyframes >= 1);
+    assert_eq!(map.num_keyframes(), stats.keyframes as usize);
+}
+
+#[test]
+fn landmarks_outlive_their_keyframe_and_the_map_stays_bounded() {
+    let cam = camera();
+    // A keyframe every 10 cm, two keyframes at most: the oldest is retired, tracked landmarks
+    // survive it.
+    let params = FrontendParams { keyframe_max_translation_m: 0.1, ..FrontendParams::DEFAULT };
+    let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+    let mut map: Box<crate::map::Map<2, 600>> = Box::default();
+    let (g, d) = render(&pose_at(0));
+    let r = fe.process(&frame(0.0, &g, &d), &cam, &mut map).unwrap();
+    let first_kf = r.keyframe.unwrap();
+    let first_ids: Vec<_> = fe.local_map().items().iter().map(|t| t.id).collect();
+    let mut made = 0;
+    for k in 1..40 {
+        let (g, d) = render(&pose_at(k));
+        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
+        assert!(r.tracked, "frame {k}: {r:?}");
+        made += usize::from(r.keyframe.is_some());
+        assert!(map.num_keyframes() <= 2 && map.num_landmarks() <= 600);
+    }
+    assert!(made >= 2, "the motion needs new keyframes ({made})");
+    assert!(map.keyframe(first_kf).is_none(), "the first keyframe was retired");
+    let still = fe.local_map().items().iter().filter(|t| first_ids.contains(&t.id)).count();
+    assert!(still > 0, "landmarks of the retired keyframe are still tracked");
+    for t in fe.local_map().items() {
+        assert!(map.landmark(t.id).is_some(), "every tracked landmark is in the map");
+    }
 }
 
 #[test]
 fn black_frames_and_missing_depth_never_panic() {
     let cam = camera();
     let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
     let (black, no_depth) = (vec_of(0u8), vec_of(0u16));
-    let r = fe.process(&frame(0.0, &black, &no_depth), &cam).unwrap();
+    let r = fe.process(&frame(0.0, &black, &no_depth), &cam, &mut map).unwrap();
     assert_eq!((r.state, r.tracked), (FrontendState::Initializing, false));
     let (g, d) = render(&pose_at(0));
-    let r = fe.process(&frame(0.1, &g, &no_depth), &cam).unwrap();
+    let r = fe.process(&frame(0.1, &g, &no_depth), &cam, &mut map).unwrap();
     assert_eq!(r.state, FrontendState::Initializing, "no depth: no keyframe");
-    let r = fe.process(&frame(0.2, &g, &d), &cam).unwrap();
-    assert!(r.keyframe_created && r.tracked);
+    assert_eq!(map.num_keyframes(), 0, "a failed keyframe leaves nothing in the map");
+    let r = fe.process(&frame(0.2, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.keyframe.is_some() && r.tracked);
     // A black frame while tracking: lost, pose held (the prediction), never a jump.
-    let r = fe.process(&frame(0.3, &black, &d), &cam).unwrap();
+    let r = fe.process(&frame(0.3, &black, &d), &cam, &mut map).unwrap();
     assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
     assert!(r.t_wc.translation.vector.norm() < 1e-6);
-    // All-invalid depth while lost: matching still works on the image, so it may recover; it
-    // must not panic.
-    let r = fe.process(&frame(0.4, &g, &no_depth), &cam).unwrap();
+    // Saturated white: lost again; the second loss in a row restarts from a keyframe, which a
+    // flat image cannot give, so it stays lost.
+    let white = vec_of(255u8);
+    let r = fe.process(&frame(0.35, &white, &d), &cam, &mut map).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
+    // All-invalid depth: matching works on the image, pixel-only residuals; must not panic.
+    let r = fe.process(&frame(0.4, &g, &no_depth), &cam, &mut map).unwrap();
     assert!(r.state != FrontendState::Initializing);
     // The same frame again (new timestamp) tracks at the same pose.
-    let r = fe.process(&frame(0.5, &g, &d), &cam).unwrap();
-    assert!(r.tracked, "{r:?}");
+    let r = fe.process(&frame(0.5, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.state == FrontendState::Tracking, "{r:?}");
     assert!(r.t_wc.translation.vector.norm() < 0.005, "{r:?}");
     assert!(fe.stats().lost_frames >= 1);
+}
+
+#[test]
+fn a_frame_from_another_scene_is_lost_not_a_jump() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    for k in 0..3 {
+        let (g, d) = render(&pose_at(k));
+        assert!(fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap().tracked);
+    }
+    // Noise unrelated to the wall, with a plausible depth.
+    let noise: Vec<u8> = (0..W * H).map(|i| (hash(i as i32, 7, 9) * 255.0) as u8).collect();
+    let (_, d) = render(&pose_at(3));
+    let before = fe.process(&frame(3.0 / 30.0, &noise, &d), &cam, &mut map).unwrap();
+    assert_eq!((before.state, before.tracked), (FrontendState::Lost, false));
+    let predicted = pose_at(3).translation.vector;
+    assert!((before.t_wc.translation.vector - predicted).norm() < 0.01, "held at the prediction");
+    // Back to the scene: tracked again.
+    let (g, d) = render(&pose_at(4));
+    let r = fe.process(&frame(4.0 / 30.0, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.tracked, "{r:?}");
 }
 
 #[test]
 fn bad_input_is_an_error_not_a_panic() {
     let cam = camera();
     let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
     let (g, d) = render(&pose_at(0));
-    fe.process(&frame(1.0, &g, &d), &cam).unwrap();
-    let e = fe.process(&frame(1.0, &g, &d), &cam).unwrap_err();
+    fe.process(&frame(1.0, &g, &d), &cam, &mut map).unwrap();
+    let e = fe.process(&frame(1.0, &g, &d), &cam, &mut map).unwrap_err();
     assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
-    let e = fe.process(&frame(f64::NAN, &g, &d), &cam).unwrap_err();
+    let e = fe.process(&frame(f64::NAN, &g, &d), &cam, &mut map).unwrap_err();
     assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
     let small = PinholeCamera::new(100.0, 100.0, 50.0, 50.0, 100, 100).unwrap();
-    let e = fe.process(&frame(2.0, &g, &d), &small).unwrap_err();
+    let e = fe.process(&frame(2.0, &g, &d), &small, &mut map).unwrap_err();
     assert!(matches!(e, FrontendError::SizeMismatch { .. }));
+    // A map the caller cleared: the front end starts over instead of following dead ids.
+    map.clear();
+    let r = fe.process(&frame(3.0, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.keyframe.is_some() && r.reinitialized, "{r:?}");
 }
 
 #[test]
@@ -159,9 +231,14 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     let p = FrontendParams::DEFAULT;
     let hessian = crate::features::HessianParams { threshold: 30.0, ..Default::default() };
     assert_eq!(p.hessian, hessian);
-    assert_eq!(p.matching, crate::matching::MatchParams::default());
+    let m = crate::matching::MatchParams::DEFAULT;
+    assert_eq!(
+        p.matching,
+        crate::matching::MatchParams { half_size: 4, forward_backward_max_px: None, ..m }
+    );
     let (guide, fine) = (crate::matching::TrackParams::GUIDE, crate::matching::TrackParams::FINE);
     assert_eq!((p.guide, p.track), (guide, fine));
+    assert_eq!(p.guide_wide, crate::matching::TrackParams::GUIDE_WIDE);
     assert_eq!(p.pose, super::super::PoseParams::default());
     assert!(p.is_valid());
     let t = crate::config::Tunables::default();
@@ -169,10 +246,6 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     let qvga = core::mem::size_of::<QvgaFrontend>();
     let vga = core::mem::size_of::<VgaFrontend>();
     std::println!("QvgaFrontend {qvga} bytes, VgaFrontend {vga} bytes");
-    #[cfg(target_pointer_width = "64")]
-    {
-        assert_eq!(core::mem::size_of::<Keyframe<320, 240>>(), 89_144);
-        assert_eq!(core::mem::size_of::<Keyframe<640, 480>>(), 319_544);
-        assert_eq!((qvga, vga), (217_560, 538_840));
-    }
+    // The local map dominates: 256 templates of 16 x 16 pixels with their anchors.
+    assert!(qvga < 240_000, "{qvga}");
 }

@@ -42,22 +42,26 @@ use nalgebra::{Point2, Point3};
 use crate::config::capacity;
 
 pub mod frontend;
+mod frontend_keyframe;
+mod frontend_match;
 mod frontend_params;
-mod keyframe;
+pub mod local_map;
 mod mask;
 mod motion;
 mod params;
 mod pose;
 mod ransac;
+pub mod sbi;
+mod select;
 
 #[cfg(test)]
 mod tests;
 
 pub use frontend::{
-    FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats,
+    FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats, GuideStage,
     QvgaFrontend, VgaFrontend,
 };
-pub use keyframe::{Keyframe, KeyframeLandmark, LandmarkFilter, MAX_KEYFRAME_LANDMARKS};
+pub use local_map::{BoardLocalMap, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine};
 pub use mask::InlierMask;
 pub use motion::{MotionModel, predict_constant_velocity};
 pub use params::PoseParams;

@@ -11,7 +11,8 @@ use ferroslam_core::config::Profile;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::image::{ImageError, total_variation};
-use ferroslam_core::tracking::{Frontend, FrontendState};
+use ferroslam_core::map::BoardMap;
+use ferroslam_core::tracking::{Frontend, FrontendState, GuideStage};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -205,7 +206,7 @@ pub struct OdometryRun {
     pub tracked_frames: usize,
     /// Frames in the lost state.
     pub lost_frames: usize,
-    /// Bytes of the core's front-end state (`size_of` of the `Frontend`).
+    /// Bytes of the core's state (`size_of` of the `Frontend` and the map).
     pub state_bytes: usize,
 }
 
@@ -241,14 +242,15 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    // Up to ~540 KB: boxed, never kept on the stack.
+    // Hundreds of KB each: boxed, never kept on the stack.
     let mut frontend: Box<Frontend<W, H>> = Box::default();
+    let mut map: Box<BoardMap> = Box::default();
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = run_with(source, expected, |frame| {
-        let r = frontend.process(frame, cam)?;
+        let r = frontend.process(frame, cam, &mut map)?;
         let pose = StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() };
         camera.push(pose);
-        if r.keyframe_created {
+        if r.keyframe.is_some() {
             keyframes.push(pose);
         }
         let state = match r.state {
@@ -260,11 +262,11 @@ where
             timestamp_s: frame.timestamp_s,
             state,
             tracked: r.tracked,
-            keyframe: r.keyframe_created,
+            keyframe: r.keyframe.is_some(),
             inliers: r.inliers,
             matches: r.matches,
             guide_matches: r.guide_matches,
-            bank_recovery: r.bank_recovery,
+            bank_recovery: r.guide_stage == GuideStage::AffineBank,
         });
         Ok(())
     })?;
@@ -276,7 +278,7 @@ where
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
-        state_bytes: std::mem::size_of::<Frontend<W, H>>(),
+        state_bytes: std::mem::size_of::<Frontend<W, H>>() + std::mem::size_of::<BoardMap>(),
     })
 }
 

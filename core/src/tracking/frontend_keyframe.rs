@@ -1,0 +1,219 @@
+//! Keyframe creation for the front end: observations of the tracked inliers, re-anchoring of
+//! warped templates, and new landmarks from the Hessian features with valid depth.
+
+use nalgebra::Point2;
+
+use super::InlierMask;
+use super::frontend::Frontend;
+use super::local_map::{PATCH_SIDE, TrackedLandmark};
+use crate::features::Feature;
+use crate::frame::RgbdFrame;
+use crate::geometry::{PinholeCamera, Pose};
+use crate::image::DepthView;
+use crate::map::{KeyFrameId, Map, MapError, Observation};
+
+/// Distance of the neighbours checked for depth discontinuities around a new landmark, pixels.
+const DISCONTINUITY_RADIUS_PX: usize = 2;
+
+/// Features closer than this to the border make no landmark: the template must fit.
+const BORDER_PX: f32 = (PATCH_SIDE / 2) as f32 + 0.5;
+
+impl<const W: usize, const H: usize> Frontend<W, H> {
+    /// Makes a keyframe of `frame` at `t_cw`: the inliers of the last pose (`inliers` over the
+    /// current correspondences; `None` when starting tracking) become its observations, templates
+    /// warped beyond `reanchor_max_warp` are re-taken from it, and features with valid depth that
+    /// are not near an inlier become new landmarks.
+    ///
+    /// Returns the keyframe's id, or `None` when the map cannot take a keyframe, or when starting
+    /// tracking and fewer than `min_keyframe_landmarks` landmarks result (the keyframe and its new
+    /// landmarks are then removed again).
+    pub(super) fn make_keyframe<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        t_cw: &Pose,
+        inliers: Option<&InlierMask>,
+    ) -> Option<KeyFrameId> {
+        let t_wc = t_cw.inverse();
+        if map.keyframes_full() {
+            let local = &self.local;
+            let _ = map.retire_oldest_keyframe(|id| local.contains(id));
+        }
+        let kf = map.add_keyframe(t_wc, frame.timestamp_s).ok()?;
+        let tracked = inliers.map_or(0, |m| self.record_inliers(frame, cam, map, kf, t_cw, m));
+        let created = self.add_new_landmarks(frame, cam, map, kf, &t_wc, inliers);
+        if inliers.is_none() && created < self.params.min_keyframe_landmarks {
+            self.local.clear();
+            let _ = map.remove_keyframe(kf);
+            map.remove_orphans(|_| false);
+            return None;
+        }
+        let _ = tracked;
+        self.reference = Some((kf, t_wc));
+        self.inliers_after_keyframe = None;
+        self.stats.keyframes = self.stats.keyframes.saturating_add(1);
+        Some(kf)
+    }
+
+    /// Records the inliers as observations of keyframe `kf` and re-anchors the tracked landmarks
+    /// whose templates are too warped; returns the observations recorded.
+    fn record_inliers<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        kf: KeyFrameId,
+        t_cw: &Pose,
+        inliers: &InlierMask,
+    ) -> usize {
+        let t_wc = t_cw.inverse();
+        let limit = self.params.reanchor_max_warp;
+        let mut recorded = 0;
+        let items = self.local.items_mut();
+        for (k, (corr, &src)) in self.correspondences.iter().zip(&self.sources).enumerate() {
+            if !inliers.contains(k) {
+                continue;
+            }
+            let Some(t) = items.get_mut(usize::from(src)) else { continue };
+            let uv = (corr.uv.x, corr.uv.y);
+            let Some(obs) = Observation::new(t.id, uv, corr.depth_m) else { continue };
+            match map.add_observation(kf, obs) {
+                Ok(()) => recorded += 1,
+                Err(MapError::ObservationsFull) => break,
+                Err(_) => continue,
+            }
+            if t.needs_reanchor(cam, t_cw, limit) {
+                let z = corr.depth_m.unwrap_or_else(|| (t_cw * corr.p_w).z);
+                t.reanchor(&frame.gray, uv, z, &t_wc);
+            }
+        }
+        recorded
+    }
+
+    /// Detects features in `frame` and makes landmarks of those with valid depth that are not
+    /// near an inlier, up to `max_new_landmarks`; returns how many were made.
+    fn add_new_landmarks<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        kf: KeyFrameId,
+        t_wc: &Pose,
+        inliers: Option<&InlierMask>,
+    ) -> usize {
+        if self.detector.detect(&frame.gray, &self.params.hessian, &mut self.features).is_err() {
+            return 0;
+        }
+        let p = self.params;
+        let min_d2 = p.new_landmark_min_distance_px * p.new_landmark_min_distance_px;
+        let mut created = 0;
+        for i in 0..self.features.len() {
+            let Some(&f) = self.features.get(i) else { break };
+            if created >= p.max_new_landmarks {
+                break;
+            }
+            let Some(z) = landmark_depth(frame, cam, &f, &p) else { continue };
+            let near_inlier = inliers.is_some_and(|m| {
+                self.correspondences.iter().enumerate().any(|(k, c)| {
+                    let (dx, dy) = (c.uv.x - f.x, c.uv.y - f.y);
+                    m.contains(k) && dx * dx + dy * dy < min_d2
+                })
+            });
+            if near_inlier || !self.make_room_in_local_map() {
+                continue;
+            }
+            let p_w = t_wc * cam.back_project(f.x, f.y, z);
+            let id = match map.add_landmark(p_w, kf) {
+                Ok(id) => id,
+                Err(_) => {
+                    let local = &self.local;
+                    if map.remove_orphans(|id| local.contains(id)) == 0 {
+                        break;
+                    }
+                    match map.add_landmark(p_w, kf) {
+                        Ok(id) => id,
+                        Err(_) => break,
+                    }
+                }
+            };
+            let tracked =
+                TrackedLandmark::new(id, &frame.gray, (f.x, f.y), z, t_wc, self.frame_index);
+            let obs = Observation::new(id, (f.x, f.y), Some(z));
+            let (Some(mut t), Some(obs)) = (tracked, obs) else {
+                let _ = map.remove_landmark(id);
+                continue;
+            };
+            if map.add_observation(kf, obs).is_err() {
+                let _ = map.remove_landmark(id);
+                break;
+            }
+            t.fused_weight = 1.0 / (z * z * z * z);
+            if !self.local.push(t) {
+                break;
+            }
+            created += 1;
+        }
+        created
+    }
+
+    /// Frees one local-map slot if none is free, evicting the landmark not found for longest
+    /// (not one found in this frame); `false` when every landmark was found in this frame.
+    fn make_room_in_local_map(&mut self) -> bool {
+        if !self.local.is_full() {
+            return true;
+        }
+        let now = self.frame_index;
+        let victim = self
+            .local
+            .items()
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.last_found_frame != now)
+            .max_by_key(|(i, t)| (now.wrapping_sub(t.last_found_frame), core::cmp::Reverse(*i)))
+            .map(|(i, _)| i);
+        let Some(victim) = victim else { return false };
+        let mut i = 0;
+        self.local.retain(|_| {
+            i += 1;
+            i - 1 != victim
+        });
+        true
+    }
+}
+
+/// The depth of feature `f` if it may become a landmark: far enough from the border for its
+/// template, depth in range and no depth discontinuity around it.
+fn landmark_depth(
+    frame: &RgbdFrame<'_>,
+    cam: &PinholeCamera,
+    f: &Feature,
+    p: &super::FrontendParams,
+) -> Option<f32> {
+    if !cam.in_image(&Point2::new(f.x, f.y), BORDER_PX) {
+        return None;
+    }
+    // Inside the image by the check above: the casts are exact.
+    let (x, y) = (libm::roundf(f.x) as usize, libm::roundf(f.y) as usize);
+    let z = depth_in_range(&frame.depth, x, y, p.depth_min_m, p.depth_max_m)?;
+    let r = DISCONTINUITY_RADIUS_PX;
+    let neighbours = [(x + r, y), (x.wrapping_sub(r), y), (x, y + r), (x, y.wrapping_sub(r))];
+    for (nx, ny) in neighbours {
+        let zn = frame.depth.depth_m(nx, ny)?;
+        if (zn - z).abs() > p.max_relative_depth_step * z {
+            return None;
+        }
+    }
+    Some(z)
+}
+
+/// The depth at `(x, y)` when it is a reading within `[min_m, max_m]`.
+pub(crate) fn depth_in_range(
+    depth: &DepthView<'_>,
+    x: usize,
+    y: usize,
+    min_m: f32,
+    max_m: f32,
+) -> Option<f32> {
+    depth.depth_m(x, y).filter(|&z| z >= min_m && z <= max_m)
+}

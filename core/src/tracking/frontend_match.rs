@@ -1,0 +1,318 @@
+//! The front end's matching stages (guides, bank recovery, final stage) and the local map's
+//! per-frame bookkeeping; see the module documentation of `frontend.rs`.
+
+use nalgebra::Point2;
+
+use super::frontend::{Frontend, GuideStage};
+use super::frontend_keyframe::depth_in_range;
+use super::sbi::estimate_rotation;
+use super::select::{Candidate, spread};
+use super::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
+use crate::frame::RgbdFrame;
+use crate::geometry::{PinholeCamera, Pose};
+use crate::map::Map;
+use crate::matching::{MatchError, MatchParams, TrackParams, match_region, track_patch};
+
+/// Grid the guides are spread over (columns, rows).
+const GUIDE_GRID: (usize, usize) = (4, 3);
+/// Grid the final stage's landmarks are spread over (columns, rows).
+const TRACK_GRID: (usize, usize) = (8, 6);
+
+/// A final stage with fewer inliers than this fraction of the previous frame's is retried from
+/// the motion model's prediction.
+const WEAK_FRACTION: f32 = 0.6;
+
+/// What [`Frontend::match_landmarks`] did.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct MatchSummary {
+    /// Correspondences of the final stage.
+    pub matches: usize,
+    /// Guide matches.
+    pub guides: usize,
+    /// The guide attempt that gave the start pose.
+    pub stage: GuideStage,
+    /// The pose, when tracking succeeded (enough matches and inliers).
+    pub estimate: Option<PoseEstimate>,
+}
+
+/// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.
+#[derive(Clone, Copy)]
+enum Matcher<'a> {
+    Patch(&'a TrackParams),
+    Bank(&'a MatchParams),
+}
+
+impl Matcher<'_> {
+    /// Pixels a predicted position must keep from the border for the search to fit.
+    fn margin(&self) -> f32 {
+        match self {
+            Self::Patch(t) => (t.half_size + t.search_radius + 1) as f32,
+            Self::Bank(m) => (m.half_size + m.search_radius + 1) as f32,
+        }
+    }
+}
+
+impl<const W: usize, const H: usize> Frontend<W, H> {
+    /// Matches the local map into `frame` in three stages (guides from `predicted_t_cw`, the bank
+    /// if they fail, then the final stage from their pose) and estimates the pose. Leaves the
+    /// final stage's candidates, correspondences and their sources in the scratch vectors.
+    pub(super) fn match_landmarks<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &Map<K, L>,
+        predicted_t_cw: &Pose,
+    ) -> MatchSummary {
+        let p = self.params;
+        let size = frame.gray.size();
+        let mut guides = 0;
+        let mut stage = GuideStage::None;
+        let mut start = None;
+        let mut prediction = *predicted_t_cw;
+        let attempts =
+            [Matcher::Patch(&p.guide), Matcher::Patch(&p.guide), Matcher::Patch(&p.guide_wide)];
+        for (k, guide) in attempts.into_iter().enumerate() {
+            if k == 1 {
+                // The prediction missed: re-predict the rotation from the whole image.
+                match self.rotation_prediction(cam, predicted_t_cw) {
+                    Some(t_cw) => prediction = t_cw,
+                    None => continue,
+                }
+            }
+            self.collect_candidates(cam, map, &prediction, guide.margin());
+            spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
+            self.match_candidates(frame, cam, map, &prediction, guide);
+            guides = self.correspondences.len();
+            start = guide_pose(cam, &self.correspondences, &prediction, &p, &mut self.rng);
+            if start.is_some() {
+                stage = [
+                    GuideStage::MotionModel,
+                    GuideStage::SmallImageRotation,
+                    GuideStage::WideSearch,
+                ][k];
+                break;
+            }
+        }
+        let Some(start) = start else {
+            // No guide attempt gave a pose: the final stage from the best prediction, and the
+            // affine bank (the costliest search) only when that fails too.
+            let (matches, estimate) = self.final_stage(frame, cam, map, &prediction);
+            if estimate.is_some() {
+                return MatchSummary { matches, guides, stage, estimate };
+            }
+            let bank = Matcher::Bank(&p.matching);
+            self.collect_candidates(cam, map, &prediction, bank.margin());
+            spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
+            self.match_candidates(frame, cam, map, &prediction, bank);
+            let guides = self.correspondences.len();
+            let Some(start) =
+                guide_pose(cam, &self.correspondences, &prediction, &p, &mut self.rng)
+            else {
+                return MatchSummary { matches, guides, stage, estimate: None };
+            };
+            let (matches, estimate) = self.final_stage(frame, cam, map, &start);
+            return MatchSummary { matches, guides, stage: GuideStage::AffineBank, estimate };
+        };
+        let (mut matches, mut estimate) = self.final_stage(frame, cam, map, &start);
+        // A guide pose far from the truth (a repeated texture can shift every guide alike) leaves
+        // few matches: then try the final stage from the motion model's prediction too, and keep
+        // the result with more inliers.
+        let inliers = |e: &Option<PoseEstimate>| e.as_ref().map_or(0, |e| e.num_inliers);
+        // Counts are at most 512: exact in f32.
+        let weak = (inliers(&estimate) as f32) < WEAK_FRACTION * self.previous_inliers as f32;
+        if weak {
+            let (m2, e2) = self.final_stage(frame, cam, map, predicted_t_cw);
+            if inliers(&e2) > inliers(&estimate) {
+                (matches, estimate) = (m2, e2);
+                stage = GuideStage::None;
+            } else {
+                // Restore the scratch of the better result.
+                (matches, estimate) = self.final_stage(frame, cam, map, &start);
+            }
+        }
+        MatchSummary { matches, guides, stage, estimate }
+    }
+
+    /// The final stage from `start`: matches and, with enough of them, the pose.
+    fn final_stage<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &Map<K, L>,
+        start: &Pose,
+    ) -> (usize, Option<PoseEstimate>) {
+        let p = self.params;
+        let fine = Matcher::Patch(&p.track);
+        self.collect_candidates(cam, map, start, fine.margin());
+        spread(&mut self.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
+        self.match_candidates(frame, cam, map, start, fine);
+        let matches = self.correspondences.len();
+        let estimate = (matches >= p.min_matches)
+            .then(|| track_pose(cam, &self.correspondences, Some(start), &p.pose, &mut self.rng))
+            .and_then(Result::ok)
+            .filter(|est| est.num_inliers >= p.min_inliers);
+        (matches, estimate)
+    }
+
+    /// The previous frame's pose turned by the rotation the small blurry images show between it
+    /// and this frame (see [`super::sbi`]), starting from the rotation `predicted_t_cw` implies.
+    fn rotation_prediction(&self, cam: &PinholeCamera, predicted_t_cw: &Pose) -> Option<Pose> {
+        let prev = self.previous_t_cw?;
+        let initial = (predicted_t_cw * prev.inverse()).rotation;
+        let r_cp = estimate_rotation(&self.small_previous, &self.small_current, cam, &initial)?;
+        Some(Pose::from_parts(nalgebra::Translation3::identity(), r_cp) * prev)
+    }
+
+    /// Fills `candidates` with the local-map landmarks that `t_cw` projects at least `margin`
+    /// pixels inside the image.
+    fn collect_candidates<const K: usize, const L: usize>(
+        &mut self,
+        cam: &PinholeCamera,
+        map: &Map<K, L>,
+        t_cw: &Pose,
+        margin: f32,
+    ) {
+        self.candidates.clear();
+        for (i, t) in self.local.items().iter().enumerate() {
+            let Some(lm) = map.landmark(t.id) else { continue };
+            let Some(uv) = cam.project_world(t_cw, &lm.p_w) else { continue };
+            if !cam.in_image(&uv, margin) {
+                continue;
+            }
+            // At most MAX_TRACKED_LANDMARKS (< 65,536) items: the index fits.
+            let c = Candidate::new(i as u16, uv, t.found);
+            if self.candidates.push(c).is_err() {
+                break;
+            }
+        }
+    }
+
+    /// Matches every candidate into `frame` from the pose `t_cw`, replacing the correspondences
+    /// and their sources.
+    fn match_candidates<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &Map<K, L>,
+        t_cw: &Pose,
+        matcher: Matcher<'_>,
+    ) {
+        self.correspondences.clear();
+        self.sources.clear();
+        let (zmin, zmax) = (self.params.depth_min_m, self.params.depth_max_m);
+        for c in &self.candidates {
+            let Some(t) = self.local.items().get(usize::from(c.index)) else { continue };
+            let Some((template, centre)) = t.template() else { continue };
+            let affine = t.warp_to(cam, t_cw);
+            let pred = (c.uv.x, c.uv.y);
+            let gray = &frame.gray;
+            let matched = match matcher {
+                Matcher::Patch(tp) => track_patch(&template, centre, &affine, gray, pred, tp)
+                    .or_else(|e| match e {
+                        // Lucas-Kanade alone missed: one search at radius 1.
+                        MatchError::RefinementFailed | MatchError::LowCorrelation { .. }
+                            if tp.search_radius == 0 =>
+                        {
+                            let wider = TrackParams { search_radius: 1, ..*tp };
+                            track_patch(&template, centre, &affine, gray, pred, &wider)
+                        }
+                        e => Err(e),
+                    })
+                    .map(|m| m.uv),
+                Matcher::Bank(m) => {
+                    let params = MatchParams { initial_affine: affine, ..*m };
+                    match_region(&template, centre, gray, pred, &params).map(|m| m.centre_in_target)
+                }
+            };
+            let Ok((u, v)) = matched else { continue };
+            let (x, y) = (libm::roundf(u), libm::roundf(v));
+            let depth_m = if x >= 0.0 && y >= 0.0 {
+                depth_in_range(&frame.depth, x as usize, y as usize, zmin, zmax)
+            } else {
+                None
+            };
+            let Some(lm) = map.landmark(t.id) else { continue };
+            let corr = Correspondence { p_w: lm.p_w, uv: Point2::new(u, v), depth_m };
+            if !corr.is_valid() || self.correspondences.push(corr).is_err() {
+                continue;
+            }
+            // Same capacity as the correspondences: cannot fail after their push succeeded.
+            let _ = self.sources.push(c.index);
+        }
+    }
+
+    /// After a tracked frame: counts visibility and finds, and (odometry mode) fuses the inliers'
+    /// depths into their landmarks.
+    pub(super) fn update_local_map<const K: usize, const L: usize>(
+        &mut self,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        est: &PoseEstimate,
+    ) {
+        let items = self.local.items_mut();
+        for c in &self.candidates {
+            if let Some(t) = items.get_mut(usize::from(c.index)) {
+                t.visible = t.visible.saturating_add(1);
+            }
+        }
+        let t_wc = est.t_cw.inverse();
+        let max_n = self.params.max_fused_measurements;
+        for (k, (corr, &src)) in self.correspondences.iter().zip(&self.sources).enumerate() {
+            let Some(t) = items.get_mut(usize::from(src)) else { continue };
+            if !est.inliers.contains(k) {
+                continue;
+            }
+            t.found = t.found.saturating_add(1);
+            t.last_found_frame = self.frame_index;
+            let (Some(z), true) = (corr.depth_m, self.params.fuse_depth) else { continue };
+            let Some(lm) = map.landmark_mut(t.id) else { continue };
+            // Inverse-variance weight of a depth with sigma_z ~ z^2, normalized at 1 m.
+            let w = 1.0 / (z * z * z * z);
+            let total = t.fused_weight + w;
+            // Only the distance along the ray from the anchoring camera changes: that bearing was
+            // measured to sub-pixel precision, the depths are what is noisy.
+            let p_obs = t_wc * cam.back_project(corr.uv.x, corr.uv.y, z);
+            let centre = t.anchor_centre();
+            let ray = lm.p_w - centre;
+            let d = ray.norm();
+            if d > 0.0 {
+                let dir = ray / d;
+                let d_obs = (p_obs - centre).dot(&dir);
+                lm.p_w = centre + dir * (d + (d_obs - d) * (w / total));
+            }
+            t.fused_weight = total.min(max_n * w);
+        }
+    }
+
+    /// Drops from the local map the landmarks found too rarely or not for too long.
+    pub(super) fn cull_local_map(&mut self) {
+        let p = self.params;
+        let now = self.frame_index;
+        self.local.retain(|t| {
+            let unreliable =
+                t.visible >= p.cull_min_visible && t.found_ratio() < p.cull_min_found_ratio;
+            let stale = now.wrapping_sub(t.last_found_frame) > p.cull_max_unseen_frames;
+            !unreliable && !stale
+        });
+    }
+}
+
+/// The pose of the guide correspondences, when it has at least `min_guide_inliers` inliers.
+fn guide_pose(
+    cam: &PinholeCamera,
+    corrs: &[Correspondence],
+    predicted_t_cw: &Pose,
+    p: &super::FrontendParams,
+    rng: &mut TrackingRng,
+) -> Option<Pose> {
+    if corrs.len() < p.min_guide_inliers {
+        return None;
+    }
+    // The guides are few: their pose needs `min_guide_inliers`, not the final pose's count.
+    let min_inliers = u32::try_from(p.min_guide_inliers).unwrap_or(u32::MAX);
+    let params = PoseParams { min_inliers, ..p.pose };
+    track_pose(cam, corrs, Some(predicted_t_cw), &params, rng)
+        .ok()
+        .filter(|est| est.num_inliers >= p.min_guide_inliers)
+        .map(|est| est.t_cw)
+}
