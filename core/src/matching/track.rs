@@ -61,10 +61,6 @@ pub const MAX_TRACK_SEARCH_RADIUS: usize = 32;
 /// Most coarse steps on each side of the prediction: `R / s` is at most this.
 pub const MAX_TRACK_COARSE_STEPS: usize = 8;
 
-/// Side of the stored template, margin included.
-const MAX_TEMPLATE_SIDE: usize = 2 * MAX_TRACK_HALF_SIZE + 3;
-/// Grid samples of the largest template (169).
-const MAX_GRID: usize = (2 * MAX_TRACK_HALF_SIZE + 1) * (2 * MAX_TRACK_HALF_SIZE + 1);
 /// Side of the largest coarse score grid.
 const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_COARSE_STEPS + 1;
 
@@ -113,14 +109,15 @@ impl TrackParams {
     };
 
     /// The few guide landmarks tracked from the motion model alone: an exhaustive search of
-    /// radius 4 (81 candidates), with the ambiguity test. Measured on the fast-rotation demo
-    /// with prediction errors of 0.5-3 px: radius 4 in steps of 1 matched 148 of 164 landmarks
+    /// radius 3 (49 candidates), with the ambiguity test. Measured on the fast-rotation demo
+    /// with prediction errors of 0.5-3 px: an exhaustive radius 4 matched 148 of 164 landmarks
     /// right and 3 wrong; radius 8 in steps of 2 only 95 right and 25 wrong (a 9 x 9 template's
-    /// correlation peak is about 2 px wide, so a step of 2 misses it and a wider window holds
-    /// more look-alikes). Larger errors are left to the rotation re-prediction and
+    /// correlation peak is about 2 px wide, so a step of 2 misses it, and a wider window holds
+    /// more look-alikes). Radius 3 keeps the accuracy of radius 4 on the demo and 7-Scenes with
+    /// 40% fewer candidates. Larger errors are left to the rotation re-prediction and
     /// [`Self::GUIDE_WIDE`].
     pub const GUIDE: Self = Self {
-        search_radius: 4,
+        search_radius: 3,
         search_step: 1,
         min_peak_margin: Some(0.05),
         max_refine_shift_px: 2.0,
@@ -163,67 +160,22 @@ pub struct PatchTrack {
     pub offset_px: f32,
 }
 
-/// The warped template: `(2h + 3)^2` samples (margin included, minus [`GRAY_OFFSET`]), the
-/// zero-mean grid values and their norm.
-struct WarpedTemplate {
-    half: usize,
-    values: [f32; MAX_TEMPLATE_SIDE * MAX_TEMPLATE_SIDE],
-    zero_mean: [f32; MAX_GRID],
+/// The warped template of one call: `N x N` grid values (`N = 2h + 1`) with a one-sample margin
+/// for their gradients (`S = N + 2` per side), gray offset removed; the grid's zero-mean values and
+/// their norm. Every size is fixed at compile time (see [`track_patch`]'s dispatch), so the loops
+/// unroll and index without checks.
+struct Template<const N: usize, const S: usize> {
+    values: [[f32; S]; S],
+    zero_mean: [[f32; N]; N],
     norm: f32,
 }
 
-/// The template grid rounded to integers for the search, over every `sub`-th row and column.
-struct Quantized {
-    /// Rounded values (gray level minus 128, so in -128..=127), row-major, `count` per side.
-    values: [i16; MAX_GRID],
-    /// Samples per side (`h + 1`... `2h + 1`).
-    count: usize,
-    /// Grid step between samples, 1 or 2.
-    sub: usize,
-    /// `sum q` and `n sum q^2 - (sum q)^2` with `n = count^2` (exact in i64).
-    sum: i64,
-    var_n2: i64,
-}
-
-impl Quantized {
-    fn new(t: &WarpedTemplate, sub: usize) -> Self {
-        let n = t.side();
-        let count = (n - 1) / sub + 1;
-        let mut q = Self { values: [0; MAX_GRID], count, sub, sum: 0, var_n2: 0 };
-        let (mut qs, mut qss) = (0i64, 0i64);
-        let side = 2 * t.half + 3;
-        let mut k = 0;
-        for j in (0..n).step_by(sub) {
-            for i in (0..n).step_by(sub) {
-                let v = t.values.get((j + 1) * side + i + 1).copied().unwrap_or(0.0);
-                // Values are in -128..128: the cast saturates nothing.
-                let r = libm::roundf(v) as i16;
-                if let Some(slot) = q.values.get_mut(k) {
-                    *slot = r;
-                }
-                k += 1;
-                qs += i64::from(r);
-                qss += i64::from(r) * i64::from(r);
-            }
-        }
-        q.sum = qs;
-        // At most 169 * 169 * 128^2: far inside i64.
-        q.var_n2 = (count * count) as i64 * qss - qs * qs;
-        q
-    }
-}
-
-impl WarpedTemplate {
-    fn new(img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2, half: usize) -> Option<Self> {
-        let side = 2 * half + 3;
-        let mut t = Self {
-            half,
-            values: [0.0; MAX_TEMPLATE_SIDE * MAX_TEMPLATE_SIDE],
-            zero_mean: [0.0; MAX_GRID],
-            norm: 0.0,
-        };
+impl<const N: usize, const S: usize> Template<N, S> {
+    /// `img` sampled at `centre + a_inv q` for the grid offsets `q` (margin included); `None` when
+    /// a sample would leave the image.
+    fn warp(img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2) -> Option<Self> {
         // A linear map sends the square's corners to the extremes: check them once.
-        let m = (half + 1) as f32;
+        let m = (S / 2) as f32;
         let (w, h) = img.size();
         let (x_max, y_max) = ((w - 1) as f32, (h - 1) as f32);
         for (i, j) in [(-m, -m), (m, -m), (-m, m), (m, m)] {
@@ -238,10 +190,11 @@ impl WarpedTemplate {
         // Positions in 16.16 fixed point: a row's samples step by the map's first column in
         // integers (no float-to-integer conversion per sample, the same on every target). The
         // corners were checked in floating point and lie at most 0.5 px inside `0..w - 1`, so the
-        // 1/65536 px rounding of a step, times 15 steps, cannot leave the image.
+        // 1/65536 px rounding of a step, times 14 steps, cannot leave the image.
         let fixed = |v: f32| libm::roundf(v * FIXED_ONE) as i32;
         let (step_x, step_y) = (fixed(a_inv[0][0]), fixed(a_inv[1][0]));
-        for (j, out_row) in t.values.chunks_exact_mut(side).take(side).enumerate() {
+        let mut values = [[0.0f32; S]; S];
+        for (j, out_row) in values.iter_mut().enumerate() {
             let (dx, dy) = mat_apply(a_inv, (-m, j as f32 - m));
             let (mut x, mut y) = (fixed(centre.0 + dx), fixed(centre.1 + dy));
             for v in out_row.iter_mut() {
@@ -249,58 +202,78 @@ impl WarpedTemplate {
                 (x, y) = (x.wrapping_add(step_x), y.wrapping_add(step_y));
             }
         }
-        let n = 2 * half + 1;
+        let mut zero_mean = [[0.0f32; N]; N];
         let mut sum = 0.0f32;
-        for j in 0..n {
-            for i in 0..n {
-                let v = t.values.get((j + 1) * side + i + 1).copied().unwrap_or(0.0);
+        for (z_row, v_row) in zero_mean.iter_mut().zip(&values[1..]) {
+            for (z, &v) in z_row.iter_mut().zip(&v_row[1..]) {
+                *z = v;
                 sum += v;
-                if let Some(z) = t.zero_mean.get_mut(j * n + i) {
-                    *z = v;
-                }
             }
         }
-        let mean = sum / (n * n) as f32;
+        let mean = sum / (N * N) as f32;
         let mut ss = 0.0f32;
-        for z in t.zero_mean.iter_mut().take(n * n) {
+        for z in zero_mean.iter_mut().flatten() {
             *z -= mean;
             ss += *z * *z;
         }
-        t.norm = libm::sqrtf(ss);
-        Some(t)
+        Some(Self { values, zero_mean, norm: libm::sqrtf(ss) })
     }
+}
 
-    fn side(&self) -> usize {
-        2 * self.half + 1
-    }
+/// The template grid rounded to integers for the search.
+struct Quantized<const N: usize> {
+    /// Rounded values (gray level minus 128, so in -128..=127).
+    values: [[i16; N]; N],
+    /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
+    sum: i64,
+    var_n2: i64,
+}
 
-    fn grid_len(&self) -> usize {
-        self.side() * self.side()
-    }
-
-    /// Central-difference gradients over the grid (row-major, margin excluded) into `gx`, `gy`.
-    fn gradients(&self, gx: &mut [f32; MAX_GRID], gy: &mut [f32; MAX_GRID]) {
-        let (n, side) = (self.side(), 2 * self.half + 3);
-        for j in 0..n {
-            let (Some(up), Some(mid), Some(down)) = (
-                self.values.get(j * side..j * side + side),
-                self.values.get((j + 1) * side..(j + 1) * side + side),
-                self.values.get((j + 2) * side..(j + 2) * side + side),
-            ) else {
-                return;
-            };
-            let (Some(rx), Some(ry)) = (gx.get_mut(j * n..j * n + n), gy.get_mut(j * n..j * n + n))
-            else {
-                return;
-            };
-            let (up, down) = (up.get(1..).unwrap_or(&[]), down.get(1..).unwrap_or(&[]));
-            let rows = rx.iter_mut().zip(ry.iter_mut()).zip(mid.windows(3)).zip(up).zip(down);
-            for ((((x, y), lcr), &u), &d) in rows {
-                if let [l, _, r] = *lcr {
-                    (*x, *y) = ((r - l) * 0.5, (d - u) * 0.5);
-                }
+impl<const N: usize> Quantized<N> {
+    fn new<const S: usize>(t: &Template<N, S>) -> Self {
+        let mut values = [[0i16; N]; N];
+        let (mut qs, mut qss) = (0i64, 0i64);
+        for (q_row, v_row) in values.iter_mut().zip(&t.values[1..]) {
+            for (q, &v) in q_row.iter_mut().zip(&v_row[1..]) {
+                // Values are in -128..128, so `v + 128.5` is positive and truncation rounds it
+                // half up: the same bits on every target, without a call to `roundf`.
+                let r = ((v + 128.5) as i32 - 128) as i16;
+                *q = r;
+                qs += i64::from(r);
+                qss += i64::from(r) * i64::from(r);
             }
         }
+        // At most 169 * 169 * 128^2: far inside i64.
+        Self { values, sum: qs, var_n2: (N * N) as i64 * qss - qs * qs }
+    }
+
+    /// ZNCC against the target's pixels of the `N x N` block whose top-left pixel is `(x0, y0)`
+    /// (inside the image: checked by the caller), in exact integer sums; `None` when either is
+    /// flat.
+    fn zncc(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<f32> {
+        // |sums| <= 169 * 255 * 255: exact in i32.
+        let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
+        for (j, q_row) in self.values.iter().enumerate() {
+            let start = (y0 + j) * stride + x0;
+            let row: &[u8; N] = data.get(start..start + N)?.try_into().ok()?;
+            for (&s, &v) in row.iter().zip(q_row) {
+                let s = i32::from(s);
+                s1 += s;
+                s2 += s * s;
+                st += s * i32::from(v);
+            }
+        }
+        let len = (N * N) as i64;
+        let (s1, s2, st) = (i64::from(s1), i64::from(s2), i64::from(st));
+        let var_s = len * s2 - s1 * s1;
+        let cov = len * st - s1 * self.sum;
+        // Less than ~0.05 gray levels of spread carries no correlation.
+        if var_s * 1000 <= len * len || self.var_n2 <= 0 {
+            return None;
+        }
+        // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
+        let denom = libm::sqrtf(var_s as f32) * libm::sqrtf(self.var_n2 as f32);
+        Some((cov as f32 / denom).clamp(-1.0, 1.0))
     }
 }
 
@@ -326,111 +299,15 @@ fn bilinear_fixed(data: &[u8], stride: usize, x: i32, y: i32) -> f32 {
     top + fy * (bottom - top)
 }
 
-/// Fills `out` (row-major, `side` x `side`) with `img` at `(x0 + a, y0 + b)` minus
-/// [`GRAY_OFFSET`], for integers `a, b in 0..side`, by bilinear interpolation with shared weights.
-/// `None` when the block (with the extra column and row bilinear reads) leaves the image or a
-/// coordinate is not finite.
-fn sample_block(img: &GrayView<'_>, x0: f32, y0: f32, side: usize, out: &mut [f32]) -> Option<()> {
-    let (w, h) = img.size();
-    // NaN fails the comparisons; the casts below only see values in 0..w.
-    if !(x0 >= 0.0 && y0 >= 0.0 && x0 + (side as f32) < w as f32 && y0 + (side as f32) < h as f32) {
-        return None;
-    }
-    let (bx, by) = (x0 as usize, y0 as usize);
-    if bx + side >= w || by + side >= h {
-        return None;
-    }
-    let (fx, fy) = (x0 - bx as f32, y0 - by as f32);
-    let (w00, w10) = ((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy));
-    let (w01, w11) = ((1.0 - fx) * fy, fx * fy);
-    for (b, out_row) in out.chunks_exact_mut(side).take(side).enumerate() {
-        let r0 = img.row(by + b)?.get(bx..=bx + side)?;
-        let r1 = img.row(by + b + 1)?.get(bx..=bx + side)?;
-        for ((o, p0), p1) in out_row.iter_mut().zip(r0.windows(2)).zip(r1.windows(2)) {
-            let (a, b2) = (f32::from(p0[0]), f32::from(p0[1]));
-            let (c, d) = (f32::from(p1[0]), f32::from(p1[1]));
-            *o = w00 * a + w10 * b2 + w01 * c + w11 * d - GRAY_OFFSET;
-        }
-    }
-    Some(())
-}
-
-/// ZNCC of the template against `side_t` x `side_t` samples read from `block` (row stride
-/// `stride`) starting at `start`; `None` when the samples are flat.
-fn zncc(t: &WarpedTemplate, block: &[f32], stride: usize, start: usize) -> Option<f32> {
-    let n = t.side();
-    let (mut s1, mut s2, mut st) = (0.0f32, 0.0f32, 0.0f32);
-    for j in 0..n {
-        let row = block.get(start + j * stride..start + j * stride + n)?;
-        let trow = t.zero_mean.get(j * n..j * n + n)?;
-        for (&s, &tv) in row.iter().zip(trow) {
-            s1 += s;
-            s2 += s * s;
-            st += s * tv;
-        }
-    }
-    let len = (n * n) as f32;
-    let var = s2 - s1 * s1 / len;
-    // Less than ~0.05 gray levels of spread carries no correlation.
-    if var.is_nan() || var <= 1e-3 * len || t.norm.is_nan() || t.norm <= 0.0 {
-        return None;
-    }
-    // Rounding can push a perfect match a few ulps past 1.
-    Some((st / (libm::sqrtf(var) * t.norm)).clamp(-1.0, 1.0))
-}
-
-/// ZNCC of the rounded template `q` against the target's pixels of the block whose top-left pixel
-/// is `(x0, y0)` (inside the image: checked by the caller), taking every `q.sub`-th row and
-/// column, in exact integer sums; `None` when either is flat.
-fn zncc_pixels(q: &Quantized, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<f32> {
-    let (n, sub) = (q.count, q.sub);
-    // |sums| <= 169 * 255 * 128: exact in i32.
-    let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
-    for j in 0..n {
-        let start = (y0 + j * sub) * stride + x0;
-        let row = data.get(start..start + (n - 1) * sub + 1)?;
-        let trow = q.values.get(j * n..j * n + n)?;
-        // The contiguous case separately: it compiles to vector code on the host.
-        let (a, b, c) =
-            if sub == 1 { sums(row.iter(), trow) } else { sums(row.iter().step_by(sub), trow) };
-        s1 += a;
-        s2 += b;
-        st += c;
-    }
-    let len = (n * n) as i64;
-    let (s1, s2, st) = (i64::from(s1), i64::from(s2), i64::from(st));
-    let var_s = len * s2 - s1 * s1;
-    let cov = len * st - s1 * q.sum;
-    // Less than ~0.05 gray levels of spread carries no correlation.
-    if var_s * 1000 <= len * len || q.var_n2 <= 0 {
-        return None;
-    }
-    // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
-    let denom = libm::sqrtf(var_s as f32) * libm::sqrtf(q.var_n2 as f32);
-    Some((cov as f32 / denom).clamp(-1.0, 1.0))
-}
-
-/// `(sum s, sum s^2, sum s q)` over the pixels `row` and template values `q`, in i32.
-fn sums<'a>(row: impl Iterator<Item = &'a u8>, q: &[i16]) -> (i32, i32, i32) {
-    let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
-    for (&s, &v) in row.zip(q) {
-        let s = i32::from(s);
-        s1 += s;
-        s2 += s * s;
-        st += s * i32::from(v);
-    }
-    (s1, s2, st)
-}
-
 /// The integer search of step 2 of the module documentation: the best pixel (integer
 /// coordinates, within `R` of the rounded prediction on each axis) and its ZNCC.
-fn search(
-    t: &WarpedTemplate,
+fn search<const N: usize, const S: usize>(
+    t: &Template<N, S>,
     target: &GrayView<'_>,
     predicted: (f32, f32),
     params: &TrackParams,
 ) -> Result<((usize, usize), f32), MatchError> {
-    let (h, r) = (params.half_size, params.search_radius);
+    let (h, r) = (N / 2, params.search_radius);
     let (w, img_h) = target.size();
     let (px, py) = (libm::roundf(predicted.0), libm::roundf(predicted.1));
     let reach = (r + h) as f32;
@@ -446,14 +323,8 @@ fn search(
     let (x0, y0) = ((px - reach) as usize, (py - reach) as usize);
     let (data, stride) = (target.data(), target.stride());
     let step = params.search_step;
-    // The coarse pass correlates every other row and column when it steps over pixels (a
-    // quarter of the work; enough to rank candidates 2 px apart), the fine pass all of them.
-    let full = Quantized::new(t, 1);
-    let halved = (step > 100).then(|| Quantized::new(t, 2));
-    let coarse_q = halved.as_ref().unwrap_or(&full);
-    let score = |q: &Quantized, ix: usize, iy: usize| {
-        zncc_pixels(q, data, stride, (x0 + ix, y0 + iy)).unwrap_or(-1.0)
-    };
+    let q = Quantized::new(t);
+    let score = |ix: usize, iy: usize| q.zncc(data, stride, (x0 + ix, y0 + iy)).unwrap_or(-1.0);
     let mut scores = [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE];
     let k_max = r / step;
     let csize = 2 * k_max + 1;
@@ -465,7 +336,7 @@ fn search(
     for ky in 0..csize {
         for kx in 0..csize {
             let (ix, iy) = (coarse(kx), coarse(ky));
-            let s = score(coarse_q, ix, iy);
+            let s = score(ix, iy);
             if let Some(slot) = scores.get_mut(ky * csize + kx) {
                 *slot = s;
             }
@@ -482,13 +353,13 @@ fn search(
         }
     }
     if step > 1 {
-        // Fine pass, full template: every integer offset within `step - 1` of the coarse best.
+        // Fine pass: every integer offset within `step - 1` of the coarse best.
         let (cx, cy) = (best.0, best.1);
         best.2 = f32::NEG_INFINITY;
         let reach_fine = step - 1;
         for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
             for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
-                let s = score(&full, ix, iy);
+                let s = score(ix, iy);
                 if s > best.2 {
                     best = (ix, iy, s);
                 }
@@ -529,64 +400,160 @@ fn second_peak(scores: &[f32], csize: usize, best: (usize, usize)) -> f32 {
     second
 }
 
+/// The template's steepest-descent images with the photometric directions projected out, and
+/// their 2 x 2 normal matrix.
+struct Steepest<const N: usize> {
+    gx: [[f32; N]; N],
+    gy: [[f32; N]; N],
+    hxx: f32,
+    hxy: f32,
+    hyy: f32,
+    det: f32,
+}
+
+impl<const N: usize> Steepest<N> {
+    /// Central-difference gradients of `t`, with the offset (the mean) and the gain (the
+    /// template itself) projected out (variable projection of `I(x + c) = g T(x) + b`); `None`
+    /// when both directions do not carry gradient (an edge alone slides along itself).
+    fn new<const S: usize>(t: &Template<N, S>) -> Option<Self> {
+        let mut gx = [[0.0f32; N]; N];
+        let mut gy = [[0.0f32; N]; N];
+        for j in 0..N {
+            let (up, mid, down) = (&t.values[j], &t.values[j + 1], &t.values[j + 2]);
+            for i in 0..N {
+                gx[j][i] = (mid[i + 2] - mid[i]) * 0.5;
+                gy[j][i] = (down[i + 1] - up[i + 1]) * 0.5;
+            }
+        }
+        let len = (N * N) as f32;
+        let norm2 = t.norm * t.norm;
+        for g in [&mut gx, &mut gy] {
+            let mean = g.iter().flatten().sum::<f32>() / len;
+            let mut coeff = 0.0f32;
+            for (v, z) in g.iter().flatten().zip(t.zero_mean.iter().flatten()) {
+                coeff += (v - mean) * z;
+            }
+            coeff /= norm2;
+            for (v, z) in g.iter_mut().flatten().zip(t.zero_mean.iter().flatten()) {
+                *v = *v - mean - coeff * z;
+            }
+        }
+        let (mut hxx, mut hxy, mut hyy) = (0.0f32, 0.0f32, 0.0f32);
+        for (x, y) in gx.iter().flatten().zip(gy.iter().flatten()) {
+            hxx += x * x;
+            hxy += x * y;
+            hyy += y * y;
+        }
+        let det = hxx * hyy - hxy * hxy;
+        if det.is_nan() || det <= 1e-6 * (hxx + hyy) * (hxx + hyy) {
+            return None;
+        }
+        Some(Self { gx, gy, hxx, hxy, hyy, det })
+    }
+}
+
+/// Sums over the `N x N` block of the target sampled at `(x0 + i, y0 + j)` by bilinear
+/// interpolation (all samples share one set of weights, so the interpolation is separable: rows
+/// first, then columns), against the steepest-descent images and the template's zero-mean values.
+#[derive(Debug, Clone, Copy)]
+struct Moments {
+    /// `sum v`.
+    sum: f32,
+    /// `sum v^2`.
+    sum_sq: f32,
+    /// `sum gx v`.
+    gx_v: f32,
+    /// `sum gy v`.
+    gy_v: f32,
+    /// `sum z v`.
+    z_v: f32,
+}
+
+impl Moments {
+    /// The moments at block origin `(x0, y0)`; `None` when the block (with the extra column and
+    /// row the interpolation reads) leaves the image or a coordinate is NaN.
+    fn at<const N: usize>(
+        img: &GrayView<'_>,
+        (x0, y0): (f32, f32),
+        sd: &Steepest<N>,
+        z: &[[f32; N]; N],
+    ) -> Option<Self> {
+        let (w, h) = img.size();
+        // NaN fails the comparisons; the casts below only see values in 0..w.
+        if !(x0 >= 0.0 && y0 >= 0.0 && x0 + (N as f32) < w as f32 && y0 + (N as f32) < h as f32) {
+            return None;
+        }
+        let (bx, by) = (x0 as usize, y0 as usize);
+        if bx + N >= w || by + N >= h {
+            return None;
+        }
+        let (fx, fy) = (x0 - bx as f32, y0 - by as f32);
+        let mut m = Self { sum: 0.0, sum_sq: 0.0, gx_v: 0.0, gy_v: 0.0, z_v: 0.0 };
+        // The horizontal pass of the previous row, reused as the top of the next.
+        let mut top = Self::row::<N>(img, bx, by, fx)?;
+        let rows = sd.gx.iter().zip(&sd.gy).zip(z).enumerate();
+        for (j, ((gxr, gyr), zr)) in rows {
+            let bot = Self::row::<N>(img, bx, by + j + 1, fx)?;
+            for i in 0..N {
+                let v = top[i] + fy * (bot[i] - top[i]);
+                m.sum += v;
+                m.sum_sq += v * v;
+                m.gx_v += gxr[i] * v;
+                m.gy_v += gyr[i] * v;
+                m.z_v += zr[i] * v;
+            }
+            top = bot;
+        }
+        Some(m)
+    }
+
+    /// Row `y` of `img` from column `bx`, interpolated at `+fx` (minus the gray offset).
+    fn row<const N: usize>(img: &GrayView<'_>, bx: usize, y: usize, fx: f32) -> Option<[f32; N]> {
+        let px = img.row(y)?.get(bx..=bx + N)?;
+        let mut out = [0.0f32; N];
+        for (o, pair) in out.iter_mut().zip(px.windows(2)) {
+            if let [a, b] = *pair {
+                let (a, b) = (f32::from(a), f32::from(b));
+                *o = a + fx * (b - a) - GRAY_OFFSET;
+            }
+        }
+        Some(out)
+    }
+
+    /// The block's squared norm about its mean over `len` samples.
+    fn variance(&self, len: f32) -> f32 {
+        self.sum_sq - self.sum * self.sum / len
+    }
+}
+
 /// Inverse-compositional translation Lucas-Kanade from `start` (step 4 of the module
 /// documentation); the refined position and its ZNCC.
-fn refine(
-    t: &WarpedTemplate,
+fn refine<const N: usize, const S: usize>(
+    t: &Template<N, S>,
     target: &GrayView<'_>,
     start: (f32, f32),
     params: &TrackParams,
 ) -> Result<((f32, f32), f32), MatchError> {
-    let (n, side) = (t.grid_len(), t.side());
-    let mut gx = [0.0f32; MAX_GRID];
-    let mut gy = [0.0f32; MAX_GRID];
-    t.gradients(&mut gx, &mut gy);
-    // Project the offset (the mean) and the gain (the template itself) out of both
-    // steepest-descent images: variable projection of `I(x + c) = g T(x) + b`.
-    let norm2 = t.norm * t.norm;
-    for g in [&mut gx, &mut gy] {
-        let mean = g.iter().take(n).sum::<f32>() / n as f32;
-        let mut coeff = 0.0f32;
-        for (v, z) in g.iter().zip(&t.zero_mean).take(n) {
-            coeff += (v - mean) * z;
-        }
-        coeff /= norm2;
-        for (v, z) in g.iter_mut().zip(&t.zero_mean).take(n) {
-            *v = *v - mean - coeff * z;
-        }
-    }
-    let (mut hxx, mut hxy, mut hyy) = (0.0f32, 0.0f32, 0.0f32);
-    for (x, y) in gx.iter().zip(&gy).take(n) {
-        hxx += x * x;
-        hxy += x * y;
-        hyy += y * y;
-    }
-    let det = hxx * hyy - hxy * hxy;
-    // Both directions must carry gradient (an edge alone slides along itself).
-    if det.is_nan() || det <= 1e-6 * (hxx + hyy) * (hxx + hyy) {
-        return Err(MatchError::RefinementFailed);
-    }
-    let half = t.half as f32;
-    let mut buf = [0.0f32; MAX_GRID];
+    let sd = Steepest::new(t).ok_or(MatchError::RefinementFailed)?;
+    let half = (N / 2) as f32;
+    let len = (N * N) as f32;
+    let moments = |c: (f32, f32)| {
+        Moments::at(target, (c.0 - half, c.1 - half), &sd, &t.zero_mean)
+            .ok_or(MatchError::RefinementFailed)
+    };
     let mut c = start;
     for _ in 0..params.max_iterations {
-        sample_block(target, c.0 - half, c.1 - half, side, &mut buf)
-            .ok_or(MatchError::RefinementFailed)?;
-        let mean = buf.iter().take(n).sum::<f32>() / n as f32;
-        let ss: f32 = buf.iter().take(n).map(|v| (v - mean) * (v - mean)).sum();
-        let norm_i = libm::sqrtf(ss);
+        let m = moments(c)?;
+        let norm_i = libm::sqrtf(m.variance(len));
         if norm_i.is_nan() || norm_i <= 0.0 {
             return Err(MatchError::RefinementFailed);
         }
+        // The error image is `(v - mean) * gain - z`; `gx`, `gy` have zero mean and are
+        // orthogonal to `z` (projected above), so `sum gx err = gain * sum gx v`.
         let gain = t.norm / norm_i;
-        let (mut bx, mut by) = (0.0f32, 0.0f32);
-        for ((&v, &z), (&x, &y)) in buf.iter().zip(&t.zero_mean).zip(gx.iter().zip(&gy)).take(n) {
-            let err = (v - mean) * gain - z;
-            bx += x * err;
-            by += y * err;
-        }
-        let dx = (hyy * bx - hxy * by) / det;
-        let dy = (hxx * by - hxy * bx) / det;
+        let (bx, by) = (gain * m.gx_v, gain * m.gy_v);
+        let dx = (sd.hyy * bx - sd.hxy * by) / sd.det;
+        let dy = (sd.hxx * by - sd.hxy * bx) / sd.det;
         c = (c.0 - dx, c.1 - dy);
         let (sx, sy) = (c.0 - start.0, c.1 - start.1);
         let shift2 = sx * sx + sy * sy;
@@ -597,10 +564,50 @@ fn refine(
             break;
         }
     }
-    sample_block(target, c.0 - half, c.1 - half, side, &mut buf)
-        .ok_or(MatchError::RefinementFailed)?;
-    let score = zncc(t, &buf, side, 0).ok_or(MatchError::RefinementFailed)?;
+    let m = moments(c)?;
+    let var = m.variance(len);
+    // Less than ~0.05 gray levels of spread carries no correlation.
+    if var.is_nan() || var <= 1e-3 * len || t.norm.is_nan() || t.norm <= 0.0 {
+        return Err(MatchError::RefinementFailed);
+    }
+    // `sum z (v - mean) = sum z v` as `z` has zero mean. Rounding can push a perfect match a few
+    // ulps past 1.
+    let score = (m.z_v / (libm::sqrtf(var) * t.norm)).clamp(-1.0, 1.0);
     Ok((c, score))
+}
+
+/// [`track_patch`] for one template size (`N = 2h + 1`, `S = N + 2`), after its checks.
+fn track_fixed<const N: usize, const S: usize>(
+    template_img: &GrayView<'_>,
+    centre: (f32, f32),
+    a_inv: &Mat2,
+    target: &GrayView<'_>,
+    predicted: (f32, f32),
+    params: &TrackParams,
+) -> Result<PatchTrack, MatchError> {
+    let t = Template::<N, S>::warp(template_img, centre, a_inv)
+        .ok_or(MatchError::TemplateOutOfImage)?;
+    let std_dev = t.norm / N as f32;
+    if std_dev.is_nan() || std_dev < params.min_template_std {
+        return Err(MatchError::FlatTemplate { std_dev });
+    }
+    let start = if params.search_radius == 0 {
+        // No search: Lucas-Kanade from the sub-pixel prediction itself.
+        predicted
+    } else {
+        let ((x, y), best) = search(&t, target, predicted, params)?;
+        if best < params.min_zncc - HOPELESS_MARGIN {
+            return Err(MatchError::LowCorrelation { zncc: best });
+        }
+        // Pixel coordinates are far below 2^24: exact in f32.
+        (x as f32, y as f32)
+    };
+    let (uv, zncc) = refine(&t, target, start, params)?;
+    if zncc.is_nan() || zncc < params.min_zncc {
+        return Err(MatchError::LowCorrelation { zncc });
+    }
+    let (dx, dy) = (uv.0 - predicted.0, uv.1 - predicted.1);
+    Ok(PatchTrack { uv, zncc, offset_px: libm::sqrtf(dx * dx + dy * dy) })
 }
 
 /// Tracks the patch of `template_img` centred at `centre` into `target`, where it is predicted at
@@ -629,27 +636,14 @@ pub fn track_patch(
         return Err(MatchError::InvalidParams);
     }
     let a_inv = mat_inverse(affine).ok_or(MatchError::InvalidParams)?;
-    let t = WarpedTemplate::new(template_img, centre, &a_inv, params.half_size)
-        .ok_or(MatchError::TemplateOutOfImage)?;
-    let std_dev = t.norm / libm::sqrtf(t.grid_len() as f32);
-    if std_dev.is_nan() || std_dev < params.min_template_std {
-        return Err(MatchError::FlatTemplate { std_dev });
+    let args = (template_img, centre, &a_inv, target, predicted, params);
+    match params.half_size {
+        1 => track_fixed::<3, 5>(args.0, args.1, args.2, args.3, args.4, args.5),
+        2 => track_fixed::<5, 7>(args.0, args.1, args.2, args.3, args.4, args.5),
+        3 => track_fixed::<7, 9>(args.0, args.1, args.2, args.3, args.4, args.5),
+        4 => track_fixed::<9, 11>(args.0, args.1, args.2, args.3, args.4, args.5),
+        5 => track_fixed::<11, 13>(args.0, args.1, args.2, args.3, args.4, args.5),
+        6 => track_fixed::<13, 15>(args.0, args.1, args.2, args.3, args.4, args.5),
+        _ => Err(MatchError::InvalidParams),
     }
-    let start = if params.search_radius == 0 {
-        // No search: Lucas-Kanade from the sub-pixel prediction itself.
-        predicted
-    } else {
-        let ((x, y), best) = search(&t, target, predicted, params)?;
-        if best < params.min_zncc - HOPELESS_MARGIN {
-            return Err(MatchError::LowCorrelation { zncc: best });
-        }
-        // Pixel coordinates are far below 2^24: exact in f32.
-        (x as f32, y as f32)
-    };
-    let (uv, zncc) = refine(&t, target, start, params)?;
-    if zncc.is_nan() || zncc < params.min_zncc {
-        return Err(MatchError::LowCorrelation { zncc });
-    }
-    let (dx, dy) = (uv.0 - predicted.0, uv.1 - predicted.1);
-    Ok(PatchTrack { uv, zncc, offset_px: libm::sqrtf(dx * dx + dy * dy) })
 }

@@ -28,7 +28,7 @@
 //!    `keyframe_max_translation_m` or turned more than `keyframe_max_rotation_rad` from the last
 //!    keyframe. A keyframe records its inliers as observations, re-anchors the landmarks whose
 //!    templates are too warped, and turns the detected Hessian features with valid depth that are
-//!    not near a tracked landmark into new landmarks (see `frontend_keyframe.rs`).
+//!    not near an inlier into new landmarks (see `frontend_keyframe.rs`).
 //! 7. Loss: when tracking fails (too few matches or inliers, no pose), the frame is
 //!    [`FrontendState::Lost`] and its output is the prediction with `tracked == false`: the
 //!    trajectory never jumps. The next frame is tried against the local map first; if that fails

@@ -1,11 +1,13 @@
 //! Keyframe creation for the front end: observations of the tracked inliers, re-anchoring of
 //! warped templates, and new landmarks from the Hessian features with valid depth.
 
+use heapless::Vec;
 use nalgebra::Point2;
 
 use super::InlierMask;
 use super::frontend::Frontend;
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
+use crate::config::capacity;
 use crate::features::Feature;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
@@ -92,7 +94,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     }
 
     /// Detects features in `frame` and makes landmarks of those with valid depth that are not
-    /// near an inlier, up to `max_new_landmarks`; returns how many were made.
+    /// near an inlier of this frame, up to `max_new_landmarks`; returns how many were made.
     fn add_new_landmarks<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
@@ -107,6 +109,17 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         }
         let p = self.params;
         let min_d2 = p.new_landmark_min_distance_px * p.new_landmark_min_distance_px;
+        // Where this frame's inliers are: a feature near one is most likely the same point.
+        // (Landmarks in view that failed to match do not block new ones: they are probably
+        // occluded or badly anchored, and culling drops them.)
+        let mut taken: Vec<(f32, f32), { capacity::MAX_TRACKED_LANDMARKS }> = Vec::new();
+        if let Some(mask) = inliers {
+            for (k, c) in self.correspondences.iter().enumerate() {
+                if mask.contains(k) && taken.push((c.uv.x, c.uv.y)).is_err() {
+                    break;
+                }
+            }
+        }
         let mut created = 0;
         for i in 0..self.features.len() {
             let Some(&f) = self.features.get(i) else { break };
@@ -114,13 +127,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 break;
             }
             let Some(z) = landmark_depth(frame, cam, &f, &p) else { continue };
-            let near_inlier = inliers.is_some_and(|m| {
-                self.correspondences.iter().enumerate().any(|(k, c)| {
-                    let (dx, dy) = (c.uv.x - f.x, c.uv.y - f.y);
-                    m.contains(k) && dx * dx + dy * dy < min_d2
-                })
+            let near = taken.iter().any(|&(u, v)| {
+                let (dx, dy) = (u - f.x, v - f.y);
+                dx * dx + dy * dy < min_d2
             });
-            if near_inlier || !self.make_room_in_local_map() {
+            if near || !self.make_room_in_local_map() {
                 continue;
             }
             let p_w = t_wc * cam.back_project(f.x, f.y, z);

@@ -22,6 +22,26 @@ const TRACK_GRID: (usize, usize) = (8, 6);
 /// the motion model's prediction.
 const WEAK_FRACTION: f32 = 0.6;
 
+/// One way to find the final stage's start pose.
+#[derive(Clone, Copy)]
+enum Attempt {
+    /// Guides matched from a prediction (the motion model's, or the small-image rotation's for
+    /// that stage), wide search or not, or by the bank for [`GuideStage::AffineBank`].
+    Guides(GuideStage, bool),
+    /// The prediction itself (the motion model's, or the small-image rotation's for that stage).
+    Prediction(GuideStage),
+}
+
+/// The attempts in order of cost (see [`Frontend::match_landmarks`]).
+const ATTEMPTS: [Attempt; 6] = [
+    Attempt::Guides(GuideStage::MotionModel, false),
+    Attempt::Prediction(GuideStage::MotionModel),
+    Attempt::Guides(GuideStage::SmallImageRotation, false),
+    Attempt::Prediction(GuideStage::SmallImageRotation),
+    Attempt::Guides(GuideStage::MotionModel, true),
+    Attempt::Guides(GuideStage::AffineBank, false),
+];
+
 /// What [`Frontend::match_landmarks`] did.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct MatchSummary {
@@ -53,9 +73,11 @@ impl Matcher<'_> {
 }
 
 impl<const W: usize, const H: usize> Frontend<W, H> {
-    /// Matches the local map into `frame` in three stages (guides from `predicted_t_cw`, the bank
-    /// if they fail, then the final stage from their pose) and estimates the pose. Leaves the
-    /// final stage's candidates, correspondences and their sources in the scratch vectors.
+    /// Matches the local map into `frame` and estimates the pose: each attempt of the module
+    /// documentation gives a start pose for the final stage, in order of cost, until a final
+    /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers); the strongest
+    /// result wins. Leaves the winner's candidates, correspondences and their sources in the
+    /// scratch vectors.
     pub(super) fn match_landmarks<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
@@ -64,72 +86,67 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         predicted_t_cw: &Pose,
     ) -> MatchSummary {
         let p = self.params;
-        let size = frame.gray.size();
+        // Counts are at most 512: exact in f32.
+        let strong_at = WEAK_FRACTION * self.previous_inliers as f32;
+        let mut best: Option<(Pose, GuideStage, usize, PoseEstimate)> = None;
+        let mut last_start = None;
         let mut guides = 0;
-        let mut stage = GuideStage::None;
-        let mut start = None;
-        let mut prediction = *predicted_t_cw;
-        let attempts =
-            [Matcher::Patch(&p.guide), Matcher::Patch(&p.guide), Matcher::Patch(&p.guide_wide)];
-        for (k, guide) in attempts.into_iter().enumerate() {
-            if k == 1 {
-                // The prediction missed: re-predict the rotation from the whole image.
-                match self.rotation_prediction(cam, predicted_t_cw) {
-                    Some(t_cw) => prediction = t_cw,
+        // The small-image rotation's prediction, computed once when first needed.
+        let mut rotated: Option<Option<Pose>> = None;
+        for attempt in ATTEMPTS {
+            let stage = match attempt {
+                Attempt::Guides(stage, _) | Attempt::Prediction(stage) => stage,
+            };
+            let prediction = if stage == GuideStage::SmallImageRotation {
+                let r =
+                    *rotated.get_or_insert_with(|| self.rotation_prediction(cam, predicted_t_cw));
+                match r {
+                    Some(t_cw) => t_cw,
                     None => continue,
                 }
-            }
-            self.collect_candidates(cam, map, &prediction, guide.margin());
-            spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
-            self.match_candidates(frame, cam, map, &prediction, guide);
-            guides = self.correspondences.len();
-            start = guide_pose(cam, &self.correspondences, &prediction, &p, &mut self.rng);
-            if start.is_some() {
-                stage = [
-                    GuideStage::MotionModel,
-                    GuideStage::SmallImageRotation,
-                    GuideStage::WideSearch,
-                ][k];
-                break;
-            }
-        }
-        let Some(start) = start else {
-            // No guide attempt gave a pose: the final stage from the best prediction, and the
-            // affine bank (the costliest search) only when that fails too.
-            let (matches, estimate) = self.final_stage(frame, cam, map, &prediction);
-            if estimate.is_some() {
-                return MatchSummary { matches, guides, stage, estimate };
-            }
-            let bank = Matcher::Bank(&p.matching);
-            self.collect_candidates(cam, map, &prediction, bank.margin());
-            spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
-            self.match_candidates(frame, cam, map, &prediction, bank);
-            let guides = self.correspondences.len();
-            let Some(start) =
-                guide_pose(cam, &self.correspondences, &prediction, &p, &mut self.rng)
-            else {
-                return MatchSummary { matches, guides, stage, estimate: None };
-            };
-            let (matches, estimate) = self.final_stage(frame, cam, map, &start);
-            return MatchSummary { matches, guides, stage: GuideStage::AffineBank, estimate };
-        };
-        let (mut matches, mut estimate) = self.final_stage(frame, cam, map, &start);
-        // A guide pose far from the truth (a repeated texture can shift every guide alike) leaves
-        // few matches: then try the final stage from the motion model's prediction too, and keep
-        // the result with more inliers.
-        let inliers = |e: &Option<PoseEstimate>| e.as_ref().map_or(0, |e| e.num_inliers);
-        // Counts are at most 512: exact in f32.
-        let weak = (inliers(&estimate) as f32) < WEAK_FRACTION * self.previous_inliers as f32;
-        if weak {
-            let (m2, e2) = self.final_stage(frame, cam, map, predicted_t_cw);
-            if inliers(&e2) > inliers(&estimate) {
-                (matches, estimate) = (m2, e2);
-                stage = GuideStage::None;
             } else {
-                // Restore the scratch of the better result.
-                (matches, estimate) = self.final_stage(frame, cam, map, &start);
+                *predicted_t_cw
+            };
+            let start = match attempt {
+                Attempt::Guides(stage, wide) => {
+                    let matcher = match (stage, wide) {
+                        (GuideStage::AffineBank, _) => Matcher::Bank(&p.matching),
+                        (_, true) => Matcher::Patch(&p.guide_wide),
+                        (_, false) => Matcher::Patch(&p.guide),
+                    };
+                    let size = frame.gray.size();
+                    self.collect_candidates(cam, map, &prediction, matcher.margin());
+                    spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
+                    self.match_candidates(frame, cam, map, &prediction, matcher);
+                    guides = self.correspondences.len();
+                    let corrs = &self.correspondences;
+                    match guide_pose(cam, corrs, &prediction, &p, &mut self.rng) {
+                        Some(t_cw) => (t_cw, stage),
+                        None => continue,
+                    }
+                }
+                Attempt::Prediction(_) => (prediction, GuideStage::None),
+            };
+            let (matches, estimate) = self.final_stage(frame, cam, map, &start.0);
+            last_start = Some(start.0);
+            let Some(est) = estimate else { continue };
+            if best.as_ref().is_none_or(|b| est.num_inliers > b.3.num_inliers) {
+                best = Some((start.0, start.1, matches, est));
+            }
+            // Counts are at most 512: exact in f32.
+            if est.num_inliers as f32 >= strong_at {
+                return MatchSummary { matches, guides, stage: start.1, estimate };
             }
         }
+        let Some((start, stage, matches, est)) = best else {
+            let matches = self.correspondences.len();
+            return MatchSummary { matches, guides, stage: GuideStage::None, estimate: None };
+        };
+        if last_start == Some(start) {
+            return MatchSummary { matches, guides, stage, estimate: Some(est) };
+        }
+        // A later attempt overwrote the scratch: redo the best one.
+        let (matches, estimate) = self.final_stage(frame, cam, map, &start);
         MatchSummary { matches, guides, stage, estimate }
     }
 

@@ -32,6 +32,8 @@ pub const SMALL_H: usize = 60;
 pub const MAX_ITERATIONS: usize = 12;
 
 const COARSE_W: usize = SMALL_W / 2;
+/// Largest block size: images up to 640 x 480.
+const MAX_BLOCK: usize = 8;
 const COARSE_H: usize = SMALL_H / 2;
 /// Huber threshold on the photometric residual, gray levels.
 const HUBER_GRAY: f32 = 12.0;
@@ -66,28 +68,31 @@ impl SmallImage {
         self.block > 0
     }
 
-    /// Reduces `img` (at least 80 x 60; its size an exact multiple `s` of 80 x 60 is best: other
-    /// sizes use the top-left `80 s x 60 s` pixels). Returns `false` for a too small image.
+    /// Reduces `img` (from 80 x 60 to 719 x 539; its size an exact multiple `s` of 80 x 60 is
+    /// best: other sizes use the top-left `80 s x 60 s` pixels). Returns `false` (and holds no
+    /// frame) for a size outside that range.
     pub fn build(&mut self, img: &GrayView<'_>) -> bool {
         let (w, h) = img.size();
         let s = (w / SMALL_W).min(h / SMALL_H);
-        if s == 0 {
+        if s == 0 || s > MAX_BLOCK {
             self.block = 0;
             return false;
         }
         let mut block = [0u16; SMALL_W * SMALL_H];
         let n = (s * s) as u32;
+        let used = SMALL_W * s;
         for (by, out) in block.chunks_exact_mut(SMALL_W).enumerate() {
-            let mut sums = [0u32; SMALL_W];
+            // Column sums of the block row's `s` image rows (at most 8 x 255: fits u16), then
+            // sums of `s` adjacent columns.
+            let mut cols = [0u16; SMALL_W * MAX_BLOCK];
             for y in by * s..(by + 1) * s {
-                let Some(row) = img.row(y).and_then(|r| r.get(..SMALL_W * s)) else { continue };
-                for (sum, px) in sums.iter_mut().zip(row.chunks_exact(s)) {
-                    for &p in px {
-                        *sum += u32::from(p);
-                    }
+                let Some(row) = img.row(y).and_then(|r| r.get(..used)) else { continue };
+                for (c, &p) in cols.iter_mut().zip(row) {
+                    *c += u16::from(p);
                 }
             }
-            for (b, &sum) in out.iter_mut().zip(&sums) {
+            for (b, chunk) in out.iter_mut().zip(cols.chunks_exact(s)) {
+                let sum: u32 = chunk.iter().map(|&c| u32::from(c)).sum();
                 // Mean of 8-bit values: fits u16.
                 *b = ((sum + n / 2) / n) as u16;
             }
