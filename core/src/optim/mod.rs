@@ -118,6 +118,9 @@ mod passes;
 mod problem;
 mod solver;
 
+#[cfg(test)]
+mod tests;
+
 use core::fmt;
 
 use crate::config::capacity::{LOCAL_WINDOW_MAX, MAX_KEYFRAMES, MAX_SEGMENTS};
@@ -296,6 +299,9 @@ pub struct BaSummary {
     pub accepted_iterations: u32,
     /// Conjugate-gradient iterations, over all solves.
     pub pcg_iterations: u32,
+    /// Where the last conjugate-gradient solve stopped: `sqrt(r^T M^-1 r / r0^T M^-1 r0)`, the
+    /// preconditioned residual relative to its start (0 when there was nothing to solve).
+    pub pcg_last_relative_residual: f32,
     /// Work units spent so far.
     pub work_units: u64,
     /// Observations in front of their camera at the current estimate.

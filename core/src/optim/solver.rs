@@ -183,8 +183,20 @@ pub(super) struct State {
     pub(super) iterations: u32,
     pub(super) accepted: u32,
     pub(super) pcg_iterations: u32,
+    /// `sqrt(rz / rz0)` where the last PCG solve stopped.
+    pub(super) pcg_last_ratio: f32,
     pub(super) work_units: u64,
     pub(super) termination: Termination,
+}
+
+impl State {
+    /// Whether the trial moved every pose and point by less than the step thresholds.
+    fn small_step(&self) -> bool {
+        let p = &self.params;
+        self.step_max[0] < p.min_step_translation_m
+            && self.step_max[1] < p.min_step_rotation_rad
+            && self.step_max[2] < p.min_step_point_m
+    }
 }
 
 /// Per-rig and per-camera workspace.
@@ -287,6 +299,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                 iterations: 0,
                 accepted: 0,
                 pcg_iterations: 0,
+                pcg_last_ratio: 0.0,
                 work_units: 0,
                 termination: Termination::NotFinished,
             },
@@ -359,6 +372,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             iterations: s.iterations,
             accepted_iterations: s.accepted,
             pcg_iterations: s.pcg_iterations,
+            pcg_last_relative_residual: s.pcg_last_ratio,
             work_units: s.work_units,
             valid_observations: s.valid,
             active_rigs: s.active_rigs,
@@ -420,10 +434,13 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                 let c = self.items(i, nr, b, Self::gather_rig);
                 next(c, Phase::GatherRigs, Phase::GatherCams(0))
             }
-            Phase::GatherCams(i) => {
-                let c = self.items(i, nc, b, Self::gather_camera);
-                next(c, Phase::GatherCams, Phase::GatherDot(0))
-            }
+            Phase::GatherCams(i) => match self.items(i, nc, b, Self::gather_camera) {
+                Some(i) => Phase::GatherCams(i),
+                None => {
+                    self.state.pcg.pq = 0.0;
+                    Phase::GatherDot(0)
+                }
+            },
             Phase::GatherDot(i) => match self.items(i, nr, b, Self::gather_dot) {
                 Some(i) => Phase::GatherDot(i),
                 None => self.after_gather(),
@@ -471,7 +488,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         s.pass_valid = 0;
         match kind {
             PassKind::Linearize => {
-                s.active_points = 0;
+                (s.active_points, s.active_rigs) = (0, 0);
                 Phase::Linearize(PointCursor::START)
             }
             PassKind::Product => Phase::ProductObs(PointCursor::START),
@@ -549,6 +566,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         pcg.iteration += 1;
         self.state.pcg_iterations += 1;
         let converged = pcg.rz_new <= tol * tol * pcg.rz0;
+        self.state.pcg_last_ratio = libm::sqrtf(pcg.rz_new / pcg.rz0);
         if converged || pcg.iteration >= max || !pcg.rz_new.is_finite() || !(pcg.rz > 0.0) {
             return Phase::TrialRigs(0);
         }
@@ -563,6 +581,13 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         (s.trial_cost, s.trial_valid) = (s.pass_cost.value(), s.pass_valid);
         if s.trial_cost.is_finite() && s.trial_cost <= s.cost && s.trial_valid >= s.valid {
             return self.begin_pass(PassKind::Apply);
+        }
+        // A step that changes nothing by more than the tolerances: at the minimum, where the
+        // cost of a trial differs from the current one by rounding only.
+        let p = &s.params;
+        let small_change = (s.trial_cost - s.cost).abs() <= p.function_tolerance * s.cost;
+        if small_change || s.small_step() {
+            return self.finish(Termination::Converged);
         }
         s.lambda *= 10.0;
         if s.lambda > LAMBDA_MAX {
@@ -582,15 +607,11 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         s.cost = new;
         s.valid = s.trial_valid;
         s.lambda = (s.lambda * 0.1).max(LAMBDA_MIN);
-        let p = &s.params;
-        let small_decrease = old - new <= p.function_tolerance * old;
-        let small_step = s.step_max[0] < p.min_step_translation_m
-            && s.step_max[1] < p.min_step_rotation_rad
-            && s.step_max[2] < p.min_step_point_m;
-        if small_decrease || small_step {
+        let small_decrease = old - new <= s.params.function_tolerance * old;
+        if small_decrease || s.small_step() {
             return self.finish(Termination::Converged);
         }
-        if s.iterations >= p.max_iterations {
+        if s.iterations >= s.params.max_iterations {
             return self.finish(Termination::MaxIterations);
         }
         Phase::Clear(0)
