@@ -135,7 +135,8 @@ pub(super) fn sym6_cholesky(h: &mut Sym6, min_pivot_ratio: f32) -> bool {
             d -= l * l;
         }
         // NaN fails the comparison.
-        if !(d > min_pivot_ratio * h[jj]) || !d.is_finite() {
+        let pivot_ok = d > min_pivot_ratio * h[jj] && d.is_finite();
+        if !pivot_ok {
             return false;
         }
         let l_jj = libm::sqrtf(d);

@@ -247,7 +247,9 @@ impl fmt::Display for BaError {
             Self::Full { kind, capacity } => write!(f, "{kind:?} capacity {capacity} exhausted"),
             Self::InvalidPose => write!(f, "pose is not finite or its rotation is not unit"),
             Self::InvalidPoint => write!(f, "point is not finite"),
-            Self::InvalidPixel { u, v } => write!(f, "pixel ({u}, {v}) is not finite or not storable"),
+            Self::InvalidPixel { u, v } => {
+                write!(f, "pixel ({u}, {v}) is not finite or not storable")
+            }
             Self::InvalidDepth { depth_m } => write!(f, "depth {depth_m} m is not storable"),
             Self::UnknownRig { index } => write!(f, "no rig {index}"),
             Self::UnknownCamera { index } => write!(f, "no camera {index}"),

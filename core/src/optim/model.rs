@@ -46,23 +46,19 @@ impl StoredObservation {
 
     /// The observation, or `Err(true)` for a pixel and `Err(false)` for a depth that is not
     /// finite or not storable.
-    pub(super) fn encode(
-        camera: u16,
-        u: f32,
-        v: f32,
-        depth_m: Option<f32>,
-    ) -> Result<Self, bool> {
+    pub(super) fn encode(camera: u16, u: f32, v: f32, depth_m: Option<f32>) -> Result<Self, bool> {
         let uv = |x: f32| {
             let q = libm::roundf((x + UV_OFFSET_PX) * UV_STEPS_PER_PX);
             // NaN and infinities fail the range test; the cast is then exact.
-            (q >= 0.0 && q <= 65535.0).then_some(q as u16)
+            (0.0..=65535.0).contains(&q).then_some(q as u16)
         };
         let (Some(u_q), Some(v_q)) = (uv(u), uv(v)) else { return Err(true) };
         let inv_depth_q = match depth_m {
             None => 0,
             Some(d) => {
                 let q = libm::roundf(INV_DEPTH_STEPS_PER_INV_M / d);
-                if !(d > 0.0 && q >= 1.0 && q <= 65535.0) {
+                let storable = d > 0.0 && (1.0..=65535.0).contains(&q);
+                if !storable {
                     return Err(false);
                 }
                 q as u16
@@ -176,7 +172,8 @@ impl Model {
         let p_c = t_cw.transform(p_w);
         let z = p_c[2];
         // NaN is rejected too (not greater).
-        if !(z > MIN_PROJECTION_DEPTH_M) {
+        let in_front = z > MIN_PROJECTION_DEPTH_M;
+        if !in_front {
             return None;
         }
         let inv_z = 1.0 / z;
@@ -276,12 +273,12 @@ mod tests {
         let m = PoseMatrix::from_pose(&t_cw());
         for k in 0..2 {
             let row = pose_row(&t.p_c, &t.rows[k].a);
-            for j in 0..6 {
-                assert!((row[j] - proj.d_uv_d_xi[(k, j)]).abs() < 1e-3, "{k} {j}");
+            for (j, r) in row.iter().enumerate() {
+                assert!((r - proj.d_uv_d_xi[(k, j)]).abs() < 1e-3, "{k} {j}");
             }
             let lw = m.rotate_back(&t.rows[k].a);
-            for j in 0..3 {
-                assert!((lw[j] - proj.d_uv_d_p_w[(k, j)]).abs() < 1e-3);
+            for (j, l) in lw.iter().enumerate() {
+                assert!((l - proj.d_uv_d_p_w[(k, j)]).abs() < 1e-3);
             }
         }
         // Behind the camera, NaN: no terms.
@@ -314,10 +311,8 @@ mod tests {
                     let analytic_cam = pose_row(&t.p_c, &t.rows[r].a);
                     let mut e = [0.0; 6];
                     e[k] = 1.0;
-                    let analytic_rig = crate::optim::linalg::dot6(
-                        &analytic_cam,
-                        &offset.adjoint(&e),
-                    );
+                    let analytic_rig =
+                        crate::optim::linalg::dot6(&analytic_cam, &offset.adjoint(&e));
                     let num_cam = (cp[r] - cm[r]) / (2.0 * h);
                     let num_rig = (rp[r] - rm[r]) / (2.0 * h);
                     let tol = |a: f32| 2e-2 + 0.01 * a.abs();

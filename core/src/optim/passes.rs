@@ -156,7 +156,8 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             }
             (PassKind::Linearize, _) => self.flush_run(),
             (PassKind::Product, 0) => {
-                acc.u = damped_inverse3(&acc.h, lambda).map_or([0.0; 3], |hi| sym3_mul(&hi, &acc.v));
+                acc.u =
+                    damped_inverse3(&acc.h, lambda).map_or([0.0; 3], |hi| sym3_mul(&hi, &acc.v));
             }
             (PassKind::Product, _) => {}
             (_, 0) => {
@@ -184,8 +185,8 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             PassKind::Product => {}
             PassKind::Apply => {
                 if let (true, Some(p)) = (s.acc.active, self.problem.point.get_mut(l)) {
-                    for k in 0..3 {
-                        p[k] += s.acc.u[k];
+                    for (pk, uk) in p.iter_mut().zip(s.acc.u) {
+                        *pk += uk;
                     }
                 }
             }
@@ -250,20 +251,21 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             }
         }
         if let Some(offset) = p.offset_matrix(c) {
-            for k in 0..3 {
-                let col = offset.adjoint_transpose(&core::array::from_fn(|i| f[i][k]));
-                for i in 0..6 {
-                    f[i][k] = col[i];
-                }
-            }
+            // Column by column: each column of F is a 6-vector in camera coordinates.
+            let cols: [Vec6; 3] = core::array::from_fn(|k| {
+                offset.adjoint_transpose(&core::array::from_fn(|i| f[i][k]))
+            });
+            f = core::array::from_fn(|i| [cols[0][i], cols[1][i], cols[2][i]]);
         }
         if s.acc.run_open && usize::from(s.acc.run_rig) != rig {
             self.flush_run();
         }
         let acc = &mut self.state.acc;
         (acc.run_rig, acc.run_open) = (rig as u16, true);
-        for i in 0..6 {
-            axpy3(&mut acc.run_f[i], 1.0, &f[i]);
+        for (run, fi) in acc.run_f.iter_mut().zip(&f) {
+            for (r, x) in run.iter_mut().zip(fi) {
+                *r += x;
+            }
         }
     }
 

@@ -86,7 +86,8 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> Problem<R, 
 fn stored_pose(pose: &Pose) -> Result<StoredPose, BaError> {
     let stored = StoredPose::from_pose(pose);
     let norm = pose.rotation.coords.norm();
-    if !stored.is_finite() || !((norm - 1.0).abs() <= 1e-3) {
+    let unit = (norm - 1.0).abs() <= 1e-3;
+    if !stored.is_finite() || !unit {
         return Err(BaError::InvalidPose);
     }
     Ok(stored)
@@ -221,8 +222,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             }
         })?;
         let i = usize::from(p.n_obs);
-        let (Some(slot), Some(end)) = (p.obs.get_mut(i), p.point_end.get_mut(point.index()))
-        else {
+        let (Some(slot), Some(end)) = (p.obs.get_mut(i), p.point_end.get_mut(point.index())) else {
             return Err(BaError::Full { kind: VariableKind::Observation, capacity: O });
         };
         *slot = obs;

@@ -383,7 +383,13 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
 
     /// Runs `f` on items `i..n` while the budget lasts: the cursor to resume at, or `None` when
     /// done.
-    fn items(&mut self, mut i: u32, n: u16, b: &mut Budget, f: fn(&mut Self, usize)) -> Option<u32> {
+    fn items(
+        &mut self,
+        mut i: u32,
+        n: u16,
+        b: &mut Budget,
+        f: fn(&mut Self, usize),
+    ) -> Option<u32> {
         while i < u32::from(n) {
             if !b.take() {
                 return Some(i);
@@ -567,7 +573,8 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         self.state.pcg_iterations += 1;
         let converged = pcg.rz_new <= tol * tol * pcg.rz0;
         self.state.pcg_last_ratio = libm::sqrtf(pcg.rz_new / pcg.rz0);
-        if converged || pcg.iteration >= max || !pcg.rz_new.is_finite() || !(pcg.rz > 0.0) {
+        let usable = pcg.rz_new.is_finite() && pcg.rz > 0.0;
+        if converged || pcg.iteration >= max || !usable {
             return Phase::TrialRigs(0);
         }
         pcg.beta = pcg.rz_new / pcg.rz;

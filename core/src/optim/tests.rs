@@ -195,7 +195,11 @@ fn reduced_system_matches_dense_reference() {
     for r in 1..RIGS {
         for k in 0..6 {
             let got = f64::from(ba.work.rig_q[r][k]);
-            assert!(rel(got, sp[6 * r + k], scale) < 1e-4, "S p rig {r} {k}: {got} {}", sp[6 * r + k]);
+            assert!(
+                rel(got, sp[6 * r + k], scale) < 1e-4,
+                "S p rig {r} {k}: {got} {}",
+                sp[6 * r + k]
+            );
         }
     }
 }
@@ -253,4 +257,3 @@ fn product_is_the_dense_matrix_column_by_column() {
     assert!((m - m.transpose()).amax() < 1e-6 * sub.amax());
     assert!((m - sub).amax() < 1e-6 * sub.amax());
 }
-

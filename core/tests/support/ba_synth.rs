@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use ferroslam_core::geometry::{PinholeCamera, Pose, se3_exp};
-use ferroslam_core::optim::{BaError, BundleAdjuster, CameraId, PointId};
+use ferroslam_core::optim::{BaError, BundleAdjuster, CameraId, ObservationId, PointId};
 use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// xorshift64*, with Gaussian samples by Box-Muller.
@@ -110,6 +110,15 @@ pub struct Synth {
     pub obs: Vec<Vec<SynthObs>>,
 }
 
+/// The ids of a filled problem: camera of each keyframe, each point, each observation in the
+/// order added (with its outlier flag).
+pub struct Filled {
+    pub cams: Vec<CameraId>,
+    pub points: Vec<PointId>,
+    pub obs: Vec<ObservationId>,
+    pub outlier: Vec<bool>,
+}
+
 /// Kinect intrinsics halved: QVGA.
 pub fn qvga_camera() -> PinholeCamera {
     PinholeCamera::new(262.5, 262.5, 159.75, 119.75, 320, 240).expect("valid intrinsics")
@@ -120,21 +129,15 @@ pub fn qvga_camera() -> PinholeCamera {
 fn true_t_wc(k: usize) -> Pose {
     let kf = k as f32;
     let c = Vector3::new(0.05 * kf, 0.02 * (kf / 5.0).sin(), 0.03 * (kf / 7.0).cos());
-    let r = UnitQuaternion::from_euler_angles(0.05 * (kf / 6.0).sin(), 0.15 * (kf / 10.0).sin(), 0.0);
+    let r =
+        UnitQuaternion::from_euler_angles(0.05 * (kf / 6.0).sin(), 0.15 * (kf / 10.0).sin(), 0.0);
     Pose::from_parts(Translation3::from(c), r)
 }
 
 /// `exp(xi) t` with `xi` Gaussian (sigma_t on rho, sigma_r on phi).
 pub fn perturb(rng: &mut Rng, t: &Pose, sigma_t: f64, sigma_r: f64) -> Pose {
     let mut g = |s: f64| rng.gauss(s) as f32;
-    let xi = Vector6::new(
-        g(sigma_t),
-        g(sigma_t),
-        g(sigma_t),
-        g(sigma_r),
-        g(sigma_r),
-        g(sigma_r),
-    );
+    let xi = Vector6::new(g(sigma_t), g(sigma_t), g(sigma_t), g(sigma_r), g(sigma_r), g(sigma_r));
     se3_exp(&xi) * t
 }
 
@@ -143,11 +146,18 @@ impl Synth {
         let camera = qvga_camera();
         let mut rng = Rng::new(cfg.seed);
         let true_t_cw: Vec<Pose> = (0..cfg.keyframes).map(|k| true_t_wc(k).inverse()).collect();
-        let fixed_keyframe: Vec<bool> = (0..cfg.keyframes).map(|k| k < cfg.fixed_keyframes).collect();
+        let fixed_keyframe: Vec<bool> =
+            (0..cfg.keyframes).map(|k| k < cfg.fixed_keyframes).collect();
         let start_t_cw = true_t_cw
             .iter()
             .zip(&fixed_keyframe)
-            .map(|(t, &f)| if f { *t } else { perturb(&mut rng, t, cfg.start_sigma_t_m, cfg.start_sigma_r_rad) })
+            .map(|(t, &f)| {
+                if f {
+                    *t
+                } else {
+                    perturb(&mut rng, t, cfg.start_sigma_t_m, cfg.start_sigma_r_rad)
+                }
+            })
             .collect();
         let mut s = Self {
             camera,
@@ -196,7 +206,12 @@ impl Synth {
                 uv_m.y = (uv_m.y + sign(rng) * rng.uniform(10.0, 30.0) as f32).clamp(0.0, 239.0);
                 depth_m *= 1.3;
             }
-            obs.push(SynthObs { keyframe: k, uv: uv_m, depth_m: has_depth.then_some(depth_m), outlier });
+            obs.push(SynthObs {
+                keyframe: k,
+                uv: uv_m,
+                depth_m: has_depth.then_some(depth_m),
+                outlier,
+            });
         }
         let fixed = rng.unit() < cfg.fixed_point_fraction;
         let start = if fixed {
@@ -219,31 +234,33 @@ impl Synth {
     pub fn fill_local<const R: usize, const C: usize, const P: usize, const O: usize>(
         &self,
         ba: &mut BundleAdjuster<R, C, P, O>,
-    ) -> Result<(Vec<CameraId>, Vec<PointId>), BaError> {
+    ) -> Result<Filled, BaError> {
         ba.clear();
         let mut cams = Vec::new();
         for (t, &fixed) in self.start_t_cw.iter().zip(&self.fixed_keyframe) {
             cams.push(ba.add_keyframe(t, fixed)?);
         }
-        let points = self.fill_points(ba, &cams)?;
-        Ok((cams, points))
+        self.fill_points(ba, cams, |_, obs| obs.to_vec())
     }
 
-    /// Adds the points and their observations, with `cams[k]` the camera of keyframe `k`.
+    /// Adds the points and their observations, with `cams[k]` the camera of keyframe `k`;
+    /// `order` gives the order in which a point's observations are added.
     pub fn fill_points<const R: usize, const C: usize, const P: usize, const O: usize>(
         &self,
         ba: &mut BundleAdjuster<R, C, P, O>,
-        cams: &[CameraId],
-    ) -> Result<Vec<PointId>, BaError> {
-        let mut points = Vec::new();
+        cams: Vec<CameraId>,
+        order: impl Fn(usize, &[SynthObs]) -> Vec<SynthObs>,
+    ) -> Result<Filled, BaError> {
+        let (mut points, mut obs, mut outlier) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..self.true_p_w.len() {
             let id = ba.add_point(&self.start_p_w[i], self.fixed_point[i])?;
-            for o in &self.obs[i] {
-                ba.add_observation(id, cams[o.keyframe], o.uv, o.depth_m)?;
+            for o in order(i, &self.obs[i]) {
+                obs.push(ba.add_observation(id, cams[o.keyframe], o.uv, o.depth_m)?);
+                outlier.push(o.outlier);
             }
             points.push(id);
         }
-        Ok(points)
+        Ok(Filled { cams, points, obs, outlier })
     }
 
     /// RMS camera-centre error (m) and RMS rotation error (rad) over the free keyframes.
