@@ -8,11 +8,11 @@ mod ba_synth;
 
 use std::sync::Mutex;
 
-use ba_synth::{Filled, Rng, Synth, SynthConfig, SynthObs, perturb};
+use ba_synth::{SEGMENT_CFG, Synth, SynthConfig, segmented};
 use ferroslam_core::geometry::Pose;
 use ferroslam_core::optim::{
     BaError, BaParams, BaStatus, BaSummary, BundleAdjuster, CameraId, LocalBundleAdjuster, PointId,
-    RigId, SegmentedBundleAdjuster, Termination, VariableKind,
+    SegmentedBundleAdjuster, Termination, VariableKind,
 };
 use nalgebra::{Point2, Point3};
 
@@ -175,73 +175,15 @@ fn fixed_variables_stay_bit_exact() {
     assert!(synth.fixed_point.iter().filter(|&&f| f).count() > 20);
 }
 
-/// A segmented problem: 30 keyframes in 6 segments of 5, one rig per segment (segment 0 fixed),
-/// each keyframe a camera at its true offset inside its segment.
-struct Segmented {
-    synth: Synth,
-    rigs: Vec<RigId>,
-    truth: Vec<Pose>,
-    filled: Filled,
-}
-
-/// Fills `ba` in segmented mode. A point's observations are added in an order that splits each
-/// segment's (odd points), exercising the approximate preconditioner.
-fn segmented(cfg: &SynthConfig, ba: &mut SegmentedBundleAdjuster) -> Segmented {
-    let synth = Synth::generate(cfg);
-    let mut rng = Rng::new(99);
-    ba.clear();
-    let (mut truth, mut rigs, mut cams) = (Vec::new(), Vec::new(), Vec::new());
-    for seg in 0..cfg.keyframes / 5 {
-        let t_sw = synth.true_t_cw[5 * seg];
-        let start = if seg == 0 { t_sw } else { perturb(&mut rng, &t_sw, 0.02, 0.0087) };
-        rigs.push(ba.add_rig(&start, seg == 0).unwrap());
-        truth.push(t_sw);
-    }
-    for k in 0..cfg.keyframes {
-        let t_cs = synth.true_t_cw[k] * truth[k / 5].inverse();
-        cams.push(ba.add_camera(rigs[k / 5], &t_cs).unwrap());
-    }
-    let interleave = |i: usize, obs: &[SynthObs]| {
-        if i.is_multiple_of(2) {
-            return obs.to_vec();
-        }
-        obs.iter().step_by(2).chain(obs.iter().skip(1).step_by(2)).copied().collect()
-    };
-    let filled = synth.fill_points(ba, cams, interleave).unwrap();
-    Segmented { synth, rigs, truth, filled }
-}
-
-impl Segmented {
-    /// RMS rig-centre error (m) over the free rigs.
-    fn rig_error(&self, ba: &SegmentedBundleAdjuster) -> f64 {
-        let mut s = 0.0;
-        for (rig, t) in self.rigs.iter().zip(&self.truth).skip(1) {
-            let est = ba.rig_pose(*rig).unwrap().inverse();
-            s +=
-                f64::from((est.translation.vector - t.inverse().translation.vector).norm_squared());
-        }
-        (s / (self.truth.len() - 1) as f64).sqrt()
-    }
-}
-
-const SEGMENT_CFG: SynthConfig = SynthConfig {
-    keyframes: 30,
-    points: 500,
-    fixed_keyframes: 0,
-    start_sigma_t_m: 0.0,
-    start_sigma_r_rad: 0.0,
-    ..SynthConfig::REALISTIC
-};
-
 #[test]
 fn segmented_mode_recovers_segment_poses() {
     let mut ba = Box::new(SegmentedBundleAdjuster::new());
     // Noise-free: back to the truth.
     let cfg = SynthConfig { pixel_noise_px: 0.0, depth_noise_coeff: 0.0, ..SEGMENT_CFG };
-    let seg = segmented(&cfg, &mut ba);
-    let before = seg.rig_error(&ba);
+    let seg = segmented(&cfg, 5, ba.as_mut()).unwrap();
+    let before = seg.rig_error(|r| ba.rig_pose(r).unwrap());
     let s = solve(&mut ba, &seg.synth, &BaParams::DEFAULT, u32::MAX);
-    let after = seg.rig_error(&ba);
+    let after = seg.rig_error(|r| ba.rig_pose(r).unwrap());
     println!("segments, noise-free: {before} -> {after} m, {s:?}");
     assert_eq!(s.termination, Termination::Converged);
     assert!(before > 0.01 && after < 3e-4, "{before} -> {after}");
@@ -256,10 +198,10 @@ fn segmented_mode_recovers_segment_poses() {
         assert_eq!(ba.camera_rig(c), Some(seg.rigs[k / 5]));
     }
     // With noise: the segment poses are still pulled close to the truth.
-    let seg = segmented(&SEGMENT_CFG, &mut ba);
-    let before = seg.rig_error(&ba);
+    let seg = segmented(&SEGMENT_CFG, 5, ba.as_mut()).unwrap();
+    let before = seg.rig_error(|r| ba.rig_pose(r).unwrap());
     let s = solve(&mut ba, &seg.synth, &BaParams::DEFAULT, u32::MAX);
-    let after = seg.rig_error(&ba);
+    let after = seg.rig_error(|r| ba.rig_pose(r).unwrap());
     println!("segments, noisy: {before} -> {after} m, {s:?}");
     assert!(after < 0.15 * before && after < 0.004, "{before} -> {after}");
 }
@@ -297,7 +239,7 @@ fn results_do_not_depend_on_the_work_quota() {
     let mut bits = Vec::new();
     for quota in [7, u32::MAX] {
         let mut ba = Box::new(SegmentedBundleAdjuster::new());
-        let seg = segmented(&SynthConfig { points: 200, ..SEGMENT_CFG }, &mut ba);
+        let seg = segmented(&SynthConfig { points: 200, ..SEGMENT_CFG }, 5, ba.as_mut()).unwrap();
         solve(&mut ba, &seg.synth, &BaParams::DEFAULT, quota);
         bits.push(output_bits(&ba, &seg.filled.cams, &seg.filled.points));
     }

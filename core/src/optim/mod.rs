@@ -68,27 +68,46 @@
 //!
 //! - one observation visit in a pass (projection, residuals, Jacobian rows and their
 //!   accumulation): the bulk of the work;
-//! - the end of a point's sweep (a 3x3 inverse, a 6x3 Schur update) or of a point;
+//! - the end of a point's sweep (its damped 3x3 inverse) or of a point;
 //! - one rig or camera item (a 6-vector update, a 6x6 Cholesky, a camera pose).
 //!
-//! Per LM iteration a problem with `n_obs` observations, `n_points` points and PCG iterations
-//! `k` costs about `(5 + 2k) n_obs + (9 + 3k) n_points` units plus a few per rig and camera.
-//! Measured on the host (x86_64, release, callgrind), on the benchmark problem below: about
-//! 290 instructions per unit on average, at most about 1,300 for one unit (a
-//! 6x6 Cholesky with its square roots); see the figures in the benchmark's output.
+//! A Levenberg-Marquardt iteration with `k` PCG iterations costs about
+//! `(6 + 2k) n_obs + (6 + 3k) n_points` units, plus `5 + 5k` per rig and camera.
+//!
+//! Host cost per unit (x86_64 release build, callgrind, on the benchmark problem below; the
+//! Cortex-M count is still to be measured):
+//!
+//! | unit | instructions |
+//! | --- | --- |
+//! | observation visit: Schur terms (linearization, sweep 1, with the 6x6 update) | ~790 |
+//! | observation visit: linearization (sweep 0, camera and point blocks) | ~660 |
+//! | observation visit: product or back-substitution | ~440 |
+//! | observation visit: trial cost | ~180 |
+//! | end of a sweep (damped 3x3 inverse) / end of a point | ~115 / ~10 |
+//! | rig or camera item | 13 to ~530 (the damped 6x6 Cholesky) |
+//!
+//! On average 421 instructions per unit (local BA) and 428 (segmented); no step of 5,000 units
+//! exceeded 3.5 M instructions (at most 694 per unit over a step). Quota 5,000 therefore keeps
+//! every step under the back end's 4 M bar with a margin; 6,000 does not in segmented mode
+//! (4.18 M).
 //!
 //! # Memory
 //!
-//! Everything is in the adjuster: no heap, no per-call stack beyond a few hundred bytes. Observations
-//! take 8 bytes (pixels rounded to 1/32 pixel, inverse depth to `2^-13` per metre, `u16` camera;
-//! the point is implied by grouping), a point 15 bytes (+ 1 padding), a rig 288, a camera 259
-//! (two pose slots, its 6x6 block, three 6-vectors). `size_of` on the 64-bit host (checked by a
-//! test):
+//! Everything is in the adjuster: no heap; `step` keeps under about 1 KB on the stack (estimated
+//! from the types it holds, not measured on the target). Observations take 8 bytes (pixels
+//! rounded to 1/32 pixel, inverse depth to `2^-13` per metre, the camera as `u16`; the point is
+//! implied by the grouping), a point 15 (position, fixed flag, end of its observations), a rig
+//! 286 (pose, trial pose, its 6x6 preconditioner block, damping, five PCG 6-vectors), a camera
+//! 258 (offset, two cached `t_cw`, its 6x6 block, two 6-vectors). `size_of` on the 64-bit host,
+//! checked by a test:
 //!
 //! | type | capacities (rigs, cameras, points, observations) | bytes |
 //! | --- | --- | --- |
-//! | [`LocalBundleAdjuster`] | 65, 65, 1536, 8192 | 125,808 |
-//! | [`SegmentedBundleAdjuster`] | 64, 256, 1536, 8192 | 175,000 |
+//! | [`LocalBundleAdjuster`] | 65, 65, 1536, 8192 | 124,320 |
+//! | [`SegmentedBundleAdjuster`] | 64, 256, 1536, 8192 | 173,304 |
+//!
+//! Local and segmented BA never run at the same time, so one `BundleAdjuster<65, 256, 1536,
+//! 8192>` (173,590 bytes) can serve both when RAM is tighter than code clarity.
 //!
 //! # Determinism
 //!
@@ -99,16 +118,25 @@
 //!
 //! # Cost measurement
 //!
-//! `core/benches/ba_step.rs` builds a 65-keyframe, 1000-point, ~6000-observation problem with
-//! Kinect-like noise at QVGA and runs it in steps of a fixed quota. Instruction counts, from the
-//! workspace root:
+//! `core/benches/ba_step.rs` solves a realistic window (65 keyframes, 1000 points, 5875
+//! observations, Kinect-like noise at QVGA, 2 cm / 0.5 deg / 3 cm start error; or, with
+//! `segmented`, the same keyframes as 13 segments of 5) in steps of a fixed quota, printing the
+//! units of every step. Instructions per step, from the workspace root:
 //!
 //! ```text
 //! cargo bench -p ferroslam-core --bench ba_step --no-run
-//! valgrind --tool=callgrind --callgrind-out-file=target/ba-callgrind.out \
-//!     --toggle-collect='*BundleAdjuster<*>::step' $(ls -t target/release/deps/ba_step-* | grep -v '\.d$' | head -1)
-//! callgrind_annotate target/ba-callgrind.out | head
+//! BIN=$(ls -t target/release/deps/ba_step-* | grep -v '\.d$' | head -1)
+//! mkdir -p target/ba-cg
+//! valgrind --tool=callgrind --callgrind-out-file=target/ba-cg/cg.out.%p \
+//!     --toggle-collect='ba_step::one_step*' --dump-after='*::one_step*' $BIN 5000 > target/ba-cg/steps.txt
+//! grep -h '^totals:' target/ba-cg/cg.out.*.* | sort -k2 -n | tail -1
 //! ```
+//!
+//! Measured (2026-11, quota 5,000): local BA 4 LM iterations, 23 PCG iterations, 472,799 units,
+//! 199.0 M instructions in 95 steps (median step 2.05 M, max 3.33 M): about 50 M instructions per
+//! LM iteration, of which a PCG iteration (one matrix-free product) is about 4.8 M. Segmented
+//! (12 free segments): 4 LM iterations, 18 PCG iterations, 393,314 units, 168.2 M instructions
+//! in 79 steps (max 3.47 M).
 
 mod items;
 mod linalg;
@@ -117,6 +145,7 @@ mod params;
 mod passes;
 mod problem;
 mod solver;
+mod state;
 
 #[cfg(test)]
 mod tests;

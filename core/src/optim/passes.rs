@@ -17,7 +17,8 @@ use super::linalg::{
     sym6_sub_congruence,
 };
 use super::model::pose_row;
-use super::solver::{Budget, BundleAdjuster};
+use super::solver::BundleAdjuster;
+use super::state::{Budget, PointAcc};
 
 /// Relative floor added to each diagonal entry before scaling by lambda (as tracking's), so a
 /// direction the data do not see still gets damped.
@@ -112,7 +113,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                 return Some(cur);
             }
             self.end_point(kind, l);
-            self.state.acc = super::solver::PointAcc::EMPTY;
+            self.state.acc = PointAcc::EMPTY;
             cur = PointCursor { point: cur.point + 1, sweep: 0, obs: end as u16 };
         }
         None

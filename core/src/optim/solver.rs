@@ -19,218 +19,60 @@
 //! Nothing a phase needs lives on the stack between two units: cursors and accumulators are in
 //! [`State`], so cutting the sequence anywhere gives the same arithmetic in the same order.
 
-use super::linalg::{PoseMatrix, StoredPose, Sym3, Sym6, Vec3, Vec6};
 use super::model::Model;
 use super::passes::{PassKind, PointCursor};
 use super::problem::Problem;
+use super::state::{Budget, LAMBDA_MAX, LAMBDA_MIN, Pcg, Phase, PointAcc, State, Sum, Workspace};
 use super::{BaError, BaParams, BaStatus, BaSummary, Termination};
 use crate::geometry::PinholeCamera;
-
-/// Damping bounds (as tracking's).
-pub(super) const LAMBDA_MIN: f32 = 1.0e-7;
-pub(super) const LAMBDA_MAX: f32 = 1.0e6;
-
-/// Where the solver is. Item cursors count rigs or cameras; point cursors walk observations.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Phase {
-    Idle,
-    Prepare(u32),
-    Clear(u32),
-    Linearize(PointCursor),
-    ReduceCams(u32),
-    ReduceRigs(u32),
-    PcgStart(u32),
-    ProductMap(u32),
-    ProductObs(PointCursor),
-    GatherRigs(u32),
-    GatherCams(u32),
-    GatherDot(u32),
-    Update(u32),
-    Direction(u32),
-    TrialRigs(u32),
-    TrialCams(u32),
-    TrialObs(PointCursor),
-    Decide,
-    Apply(PointCursor),
-    ApplyRigs(u32),
-    Finished,
-}
-
-/// A work quota being spent.
-#[derive(Debug)]
-pub(super) struct Budget {
-    remaining: u32,
-    used: u32,
-}
-
-impl Budget {
-    /// Takes one unit; false when none is left.
-    pub(super) fn take(&mut self) -> bool {
-        if self.remaining == 0 {
-            return false;
-        }
-        self.remaining -= 1;
-        self.used += 1;
-        true
-    }
-}
-
-/// Compensated (Kahan) f32 sum: the cost of thousands of terms stays accurate enough to compare
-/// a trial with the current estimate. Rust never reassociates float arithmetic, so the
-/// compensation survives optimization.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub(super) struct Sum {
-    s: f32,
-    c: f32,
-}
-
-impl Sum {
-    pub(super) const ZERO: Self = Self { s: 0.0, c: 0.0 };
-
-    pub(super) fn add(&mut self, x: f32) {
-        let y = x - self.c;
-        let t = self.s + y;
-        self.c = (t - self.s) - y;
-        self.s = t;
-    }
-
-    pub(super) fn value(&self) -> f32 {
-        self.s
-    }
-}
-
-/// Per-point scratch of the observation passes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct PointAcc {
-    /// The point's 3x3 block `sum w l l^T` (undamped).
-    pub(super) h: Sym3,
-    /// Its gradient `sum w e l`.
-    pub(super) g: Vec3,
-    /// `sum w l (j . x_c)`: the point row of the reduced product or back-substitution.
-    pub(super) v: Vec3,
-    /// The damped inverse of `h`, when the point is active.
-    pub(super) hi: Sym3,
-    /// `hi g` (linearization), `hi v` (product), or the point step (trial, apply).
-    pub(super) u: Vec3,
-    pub(super) active: bool,
-    /// Schur run: the rig whose observations are being summed, and their `F = J_s^T W J_l`.
-    pub(super) run_rig: u16,
-    pub(super) run_open: bool,
-    pub(super) run_f: [Vec3; 6],
-    /// Cost and projecting observations of this point.
-    pub(super) cost: f32,
-    pub(super) valid: u32,
-}
-
-impl PointAcc {
-    pub(super) const EMPTY: Self = Self {
-        h: [0.0; 6],
-        g: [0.0; 3],
-        v: [0.0; 3],
-        hi: [0.0; 6],
-        u: [0.0; 3],
-        active: false,
-        run_rig: 0,
-        run_open: false,
-        run_f: [[0.0; 3]; 6],
-        cost: 0.0,
-        valid: 0,
-    };
-}
-
-/// Scalars of the conjugate-gradient iteration.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Pcg {
-    pub(super) rz: f32,
-    pub(super) rz0: f32,
-    pub(super) rz_new: f32,
-    pub(super) pq: f32,
-    pub(super) alpha: f32,
-    pub(super) beta: f32,
-    pub(super) iteration: u32,
-}
-
-impl Pcg {
-    const ZERO: Self =
-        Self { rz: 0.0, rz0: 0.0, rz_new: 0.0, pq: 0.0, alpha: 0.0, beta: 0.0, iteration: 0 };
-}
-
-/// Everything but the problem and the per-variable workspace.
-#[derive(Debug)]
-pub(super) struct State {
-    pub(super) phase: Phase,
-    pub(super) model: Model,
-    pub(super) params: BaParams,
-    pub(super) lambda: f32,
-    /// Cost and projecting observations at the current estimate.
-    pub(super) cost: f32,
-    pub(super) valid: u32,
-    pub(super) initial_cost: f32,
-    /// Cost and projecting observations at the trial estimate (kept while the trial is applied).
-    pub(super) trial_cost: f32,
-    pub(super) trial_valid: u32,
-    pub(super) acc: PointAcc,
-    /// Running sums of the current observation pass.
-    pub(super) pass_cost: Sum,
-    pub(super) pass_valid: u32,
-    pub(super) active_points: u32,
-    pub(super) active_rigs: u32,
-    pub(super) pcg: Pcg,
-    /// Largest rig step (translation m, rotation rad) and point step (m) of the trial.
-    pub(super) step_max: [f32; 3],
-    /// Which of the two camera-pose slots holds the linearization point (the other: the trial).
-    pub(super) lin_slot: usize,
-    pub(super) iterations: u32,
-    pub(super) accepted: u32,
-    pub(super) pcg_iterations: u32,
-    /// `sqrt(rz / rz0)` where the last PCG solve stopped.
-    pub(super) pcg_last_ratio: f32,
-    pub(super) work_units: u64,
-    pub(super) termination: Termination,
-}
-
-impl State {
-    /// Whether the trial moved every pose and point by less than the step thresholds.
-    fn small_step(&self) -> bool {
-        let p = &self.params;
-        self.step_max[0] < p.min_step_translation_m
-            && self.step_max[1] < p.min_step_rotation_rad
-            && self.step_max[2] < p.min_step_point_m
-    }
-}
-
-/// Per-rig and per-camera workspace.
-#[derive(Debug)]
-pub(super) struct Workspace<const R: usize, const C: usize> {
-    pub(super) rig_trial: [StoredPose; R],
-    /// Free and well-conditioned in this linearization.
-    pub(super) rig_active: [bool; R],
-    /// Diagonal of the rig's own block while linearizing; `lambda D` once reduced.
-    pub(super) rig_damp: [Vec6; R],
-    /// The Schur diagonal block, then its Cholesky factor: the preconditioner.
-    pub(super) rig_precond: [Sym6; R],
-    /// PCG vectors; `rig_r` holds the reduced gradient before PCG starts.
-    pub(super) rig_x: [Vec6; R],
-    pub(super) rig_r: [Vec6; R],
-    pub(super) rig_z: [Vec6; R],
-    pub(super) rig_p: [Vec6; R],
-    pub(super) rig_q: [Vec6; R],
-    /// `t_cw` of every camera in two slots: linearization point and trial.
-    pub(super) cam_pose: [[PoseMatrix; C]; 2],
-    /// The camera's own 6x6 block (camera frame), while linearizing.
-    pub(super) cam_h: [Sym6; C],
-    /// Gradient (linearizing), then the camera part of the Schur product (PCG).
-    pub(super) cam_acc: [Vec6; C],
-    /// The rig direction (PCG) or step (trial) mapped to the camera: `Ad(t_cs) x_s`.
-    pub(super) cam_x: [Vec6; C],
-}
 
 /// A fixed-memory, resumable bundle adjuster; see the [module documentation](super) for the
 /// model, the algorithm, the work unit and the memory.
 ///
 /// Capacities: `RIGS` pose variables, `CAMERAS` cameras hanging from them, `POINTS` points and
 /// `OBSERVATIONS` observations, each at most 65,535. Build it in place (`static`, or
-/// [`Self::new`] into its final home): it is large.
+/// [`Self::new`] into its final home): at the back end's capacities it is large.
+///
+/// # Use
+///
+/// Fill (rigs or keyframes, then each point followed by its observations), [`Self::start`],
+/// call [`Self::step`] between frames until it reports [`BaStatus::Finished`], read the
+/// results; [`Self::clear`] before the next problem.
+///
+/// ```
+/// use ferroslam_core::geometry::{PinholeCamera, Pose};
+/// use ferroslam_core::optim::{BaParams, BaStatus, BundleAdjuster, Termination};
+/// use nalgebra::{Point3, Translation3, UnitQuaternion};
+///
+/// let camera = PinholeCamera::new(262.5, 262.5, 159.75, 119.75, 320, 240)?;
+/// let at = |x: f32| Pose::from_parts(Translation3::new(x, 0.0, 0.0), UnitQuaternion::identity());
+/// let truth = [at(0.0), at(-0.1)];
+/// // A small adjuster fits on the stack; the back end keeps its own in a `static`.
+/// let mut ba = BundleAdjuster::<4, 4, 64, 256>::new();
+/// let k0 = ba.add_keyframe(&truth[0], true)?; // fixed: it holds the gauge
+/// let k1 = ba.add_keyframe(&at(-0.12), false)?; // starts 2 cm off
+/// for i in 0..30 {
+///     let f = i as f32;
+///     let p_w = Point3::new(-0.5 + 0.035 * f, 0.1 * (f % 5.0) - 0.2, 2.0 + 0.05 * (f % 7.0));
+///     let p = ba.add_point(&p_w, false)?;
+///     for (k, t_cw) in [k0, k1].into_iter().zip(truth) {
+///         let p_c = t_cw * p_w;
+///         let uv = camera.project(&p_c).ok_or("behind the camera")?;
+///         ba.add_observation(p, k, uv, Some(p_c.z))?;
+///     }
+/// }
+/// ba.start(&camera, &BaParams::DEFAULT)?;
+/// let summary = loop {
+///     // One call per frame, at most 5,000 work units each.
+///     if let BaStatus::Finished(summary) = ba.step(5000)? {
+///         break summary;
+///     }
+/// };
+/// assert_eq!(summary.termination, Termination::Converged);
+/// let t1 = ba.camera_pose(k1).ok_or("unknown camera")?;
+/// assert!((t1.translation.vector - truth[1].translation.vector).norm() < 1e-3);
+/// # Ok::<(), Box<dyn core::error::Error>>(())
+/// ```
 #[derive(Debug)]
 pub struct BundleAdjuster<
     const RIGS: usize,
@@ -241,6 +83,14 @@ pub struct BundleAdjuster<
     pub(super) problem: Problem<RIGS, CAMERAS, POINTS, OBSERVATIONS>,
     pub(super) work: Workspace<RIGS, CAMERAS>,
     pub(super) state: State,
+}
+
+/// The phase `here(i)` to resume an item phase at cursor `i`, or `then` once it is done.
+fn resume(cursor: Option<u32>, here: fn(u32) -> Phase, then: Phase) -> Phase {
+    match cursor {
+        Some(i) => here(i),
+        None => then,
+    }
 }
 
 impl<const R: usize, const C: usize, const P: usize, const O: usize> Default
@@ -261,49 +111,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
     /// An empty adjuster, in `const` context (for a `static`).
     pub const fn new() -> Self {
         let () = Self::CAPACITIES_FIT_U16;
-        Self {
-            problem: Problem::new(),
-            work: Workspace {
-                rig_trial: [StoredPose::IDENTITY; R],
-                rig_active: [false; R],
-                rig_damp: [[0.0; 6]; R],
-                rig_precond: [[0.0; 21]; R],
-                rig_x: [[0.0; 6]; R],
-                rig_r: [[0.0; 6]; R],
-                rig_z: [[0.0; 6]; R],
-                rig_p: [[0.0; 6]; R],
-                rig_q: [[0.0; 6]; R],
-                cam_pose: [[PoseMatrix::IDENTITY; C]; 2],
-                cam_h: [[0.0; 21]; C],
-                cam_acc: [[0.0; 6]; C],
-                cam_x: [[0.0; 6]; C],
-            },
-            state: State {
-                phase: Phase::Idle,
-                model: Model::EMPTY,
-                params: BaParams::DEFAULT,
-                lambda: BaParams::DEFAULT.lambda_init,
-                cost: 0.0,
-                valid: 0,
-                initial_cost: 0.0,
-                trial_cost: 0.0,
-                trial_valid: 0,
-                acc: PointAcc::EMPTY,
-                pass_cost: Sum::ZERO,
-                pass_valid: 0,
-                active_points: 0,
-                active_rigs: 0,
-                pcg: Pcg::ZERO,
-                step_max: [0.0; 3],
-                lin_slot: 0,
-                iterations: 0,
-                accepted: 0,
-                pcg_iterations: 0,
-                pcg_last_ratio: 0.0,
-                work_units: 0,
-                termination: Termination::NotFinished,
-            },
-        }
+        Self { problem: Problem::new(), work: Workspace::new(), state: State::new() }
     }
 
     /// Empties the problem (capacity and storage are kept) and stops any solve.
@@ -401,18 +209,14 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
     }
 
     /// One stretch of the state machine: runs `phase` while the budget lasts and returns the
-    /// phase to continue with.
+    /// phase to continue with (see the module documentation for the order of the phases).
     fn advance(&mut self, phase: Phase, b: &mut Budget) -> Phase {
         let (nc, nr) = (self.problem.n_cams, self.problem.n_rigs);
-        let next = |cursor: Option<u32>, here: fn(u32) -> Phase, then: Phase| match cursor {
-            Some(i) => here(i),
-            None => then,
-        };
         match phase {
             Phase::Idle | Phase::Finished => phase,
             Phase::Prepare(i) => {
                 let c = self.items(i, nc, b, Self::prepare_camera);
-                next(c, Phase::Prepare, Phase::Clear(0))
+                resume(c, Phase::Prepare, Phase::Clear(0))
             }
             Phase::Clear(i) => match self.items(i, nc.saturating_add(nr), b, Self::clear_item) {
                 Some(i) => Phase::Clear(i),
@@ -421,12 +225,48 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             Phase::Linearize(cur) => self.point_phase(PassKind::Linearize, cur, b),
             Phase::ReduceCams(i) => {
                 let c = self.items(i, nc, b, Self::reduce_camera);
-                next(c, Phase::ReduceCams, Phase::ReduceRigs(0))
+                resume(c, Phase::ReduceCams, Phase::ReduceRigs(0))
             }
             Phase::ReduceRigs(i) => match self.items(i, nr, b, Self::reduce_rig) {
                 Some(i) => Phase::ReduceRigs(i),
                 None => self.after_reduce(),
             },
+            Phase::PcgStart(_)
+            | Phase::ProductMap(_)
+            | Phase::ProductObs(_)
+            | Phase::GatherRigs(_)
+            | Phase::GatherCams(_)
+            | Phase::GatherDot(_)
+            | Phase::Update(_)
+            | Phase::Direction(_) => self.advance_pcg(phase, b),
+            Phase::TrialRigs(i) => {
+                let c = self.items(i, nr, b, Self::trial_rig);
+                resume(c, Phase::TrialRigs, Phase::TrialCams(0))
+            }
+            Phase::TrialCams(i) => match self.items(i, nc, b, Self::trial_camera) {
+                Some(i) => Phase::TrialCams(i),
+                None => self.begin_pass(PassKind::Trial),
+            },
+            Phase::TrialObs(cur) => self.point_phase(PassKind::Trial, cur, b),
+            Phase::Decide => {
+                if b.take() {
+                    self.decide()
+                } else {
+                    Phase::Decide
+                }
+            }
+            Phase::Apply(cur) => self.point_phase(PassKind::Apply, cur, b),
+            Phase::ApplyRigs(i) => match self.items(i, nr, b, Self::apply_rig) {
+                Some(i) => Phase::ApplyRigs(i),
+                None => self.after_apply(),
+            },
+        }
+    }
+
+    /// [`Self::advance`] for the phases of the conjugate-gradient solve.
+    fn advance_pcg(&mut self, phase: Phase, b: &mut Budget) -> Phase {
+        let (nc, nr) = (self.problem.n_cams, self.problem.n_rigs);
+        match phase {
             Phase::PcgStart(i) => match self.items(i, nr, b, Self::pcg_start) {
                 Some(i) => Phase::PcgStart(i),
                 None => self.after_pcg_start(),
@@ -438,7 +278,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             Phase::ProductObs(cur) => self.point_phase(PassKind::Product, cur, b),
             Phase::GatherRigs(i) => {
                 let c = self.items(i, nr, b, Self::gather_rig);
-                next(c, Phase::GatherRigs, Phase::GatherCams(0))
+                resume(c, Phase::GatherRigs, Phase::GatherCams(0))
             }
             Phase::GatherCams(i) => match self.items(i, nc, b, Self::gather_camera) {
                 Some(i) => Phase::GatherCams(i),
@@ -462,27 +302,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                     Phase::ProductMap(0)
                 }
             },
-            Phase::TrialRigs(i) => {
-                let c = self.items(i, nr, b, Self::trial_rig);
-                next(c, Phase::TrialRigs, Phase::TrialCams(0))
-            }
-            Phase::TrialCams(i) => match self.items(i, nc, b, Self::trial_camera) {
-                Some(i) => Phase::TrialCams(i),
-                None => self.begin_pass(PassKind::Trial),
-            },
-            Phase::TrialObs(cur) => self.point_phase(PassKind::Trial, cur, b),
-            Phase::Decide => {
-                if b.take() {
-                    self.decide()
-                } else {
-                    Phase::Decide
-                }
-            }
-            Phase::Apply(cur) => self.point_phase(PassKind::Apply, cur, b),
-            Phase::ApplyRigs(i) => match self.items(i, nr, b, Self::apply_rig) {
-                Some(i) => Phase::ApplyRigs(i),
-                None => self.after_apply(),
-            },
+            _ => phase,
         }
     }
 

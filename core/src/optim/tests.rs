@@ -12,7 +12,7 @@ use nalgebra::{
 
 use super::linalg::{PoseMatrix, sym6_index};
 use super::passes::DIAG_FLOOR;
-use super::solver::Phase;
+use super::state::Phase;
 use super::{BaParams, BundleAdjuster, CameraId};
 use crate::geometry::{PinholeCamera, Pose, se3_adjoint};
 

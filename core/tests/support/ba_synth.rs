@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use ferroslam_core::geometry::{PinholeCamera, Pose, se3_exp};
-use ferroslam_core::optim::{BaError, BundleAdjuster, CameraId, ObservationId, PointId};
+use ferroslam_core::optim::{BaError, BundleAdjuster, CameraId, ObservationId, PointId, RigId};
 use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// xorshift64*, with Gaussian samples by Box-Muller.
@@ -284,5 +284,71 @@ impl Synth {
             n += 1;
         }
         (s / n.max(1) as f64).sqrt()
+    }
+}
+
+/// A segmented problem: keyframes in segments of `seg_len`, one rig per segment (segment 0
+/// fixed, the others perturbed by 2 cm / 0.5 deg), each keyframe a camera at its true offset
+/// inside its segment.
+pub struct Segmented {
+    pub synth: Synth,
+    pub rigs: Vec<RigId>,
+    /// True `t_sw` of each segment (its first keyframe's `t_cw`).
+    pub truth: Vec<Pose>,
+    pub filled: Filled,
+}
+
+/// [`SynthConfig::REALISTIC`] with 30 keyframes and 500 points, no keyframe perturbation (the
+/// segments are perturbed instead).
+pub const SEGMENT_CFG: SynthConfig = SynthConfig {
+    keyframes: 30,
+    points: 500,
+    fixed_keyframes: 0,
+    start_sigma_t_m: 0.0,
+    start_sigma_r_rad: 0.0,
+    ..SynthConfig::REALISTIC
+};
+
+/// Fills `ba` in segmented mode. A point's observations are added in an order that splits each
+/// segment's (odd points), exercising the approximate preconditioner.
+pub fn segmented<const R: usize, const C: usize, const P: usize, const O: usize>(
+    cfg: &SynthConfig,
+    seg_len: usize,
+    ba: &mut BundleAdjuster<R, C, P, O>,
+) -> Result<Segmented, BaError> {
+    let synth = Synth::generate(cfg);
+    let mut rng = Rng::new(99);
+    ba.clear();
+    let (mut truth, mut rigs, mut cams) = (Vec::new(), Vec::new(), Vec::new());
+    for seg in 0..cfg.keyframes.div_ceil(seg_len) {
+        let t_sw = synth.true_t_cw[seg_len * seg];
+        let start = if seg == 0 { t_sw } else { perturb(&mut rng, &t_sw, 0.02, 0.0087) };
+        rigs.push(ba.add_rig(&start, seg == 0)?);
+        truth.push(t_sw);
+    }
+    for k in 0..cfg.keyframes {
+        let t_cs = synth.true_t_cw[k] * truth[k / seg_len].inverse();
+        cams.push(ba.add_camera(rigs[k / seg_len], &t_cs)?);
+    }
+    let interleave = |i: usize, obs: &[SynthObs]| {
+        if i.is_multiple_of(2) {
+            return obs.to_vec();
+        }
+        obs.iter().step_by(2).chain(obs.iter().skip(1).step_by(2)).copied().collect()
+    };
+    let filled = synth.fill_points(ba, cams, interleave)?;
+    Ok(Segmented { synth, rigs, truth, filled })
+}
+
+impl Segmented {
+    /// RMS rig-centre error (m) over the free rigs, given each rig's current `t_sw`.
+    pub fn rig_error(&self, rig_pose: impl Fn(RigId) -> Pose) -> f64 {
+        let mut s = 0.0;
+        for (rig, t) in self.rigs.iter().zip(&self.truth).skip(1) {
+            let est = rig_pose(*rig).inverse();
+            s +=
+                f64::from((est.translation.vector - t.inverse().translation.vector).norm_squared());
+        }
+        (s / (self.truth.len() - 1).max(1) as f64).sqrt()
     }
 }
