@@ -194,11 +194,11 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
     fn items(
         &mut self,
         mut i: u32,
-        n: u16,
+        n: u32,
         b: &mut Budget,
         f: fn(&mut Self, usize),
     ) -> Option<u32> {
-        while i < u32::from(n) {
+        while i < n {
             if !b.take() {
                 return Some(i);
             }
@@ -211,14 +211,14 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
     /// One stretch of the state machine: runs `phase` while the budget lasts and returns the
     /// phase to continue with (see the module documentation for the order of the phases).
     fn advance(&mut self, phase: Phase, b: &mut Budget) -> Phase {
-        let (nc, nr) = (self.problem.n_cams, self.problem.n_rigs);
+        let (nc, nr) = (u32::from(self.problem.n_cams), u32::from(self.problem.n_rigs));
         match phase {
             Phase::Idle | Phase::Finished => phase,
             Phase::Prepare(i) => {
                 let c = self.items(i, nc, b, Self::prepare_camera);
                 resume(c, Phase::Prepare, Phase::Clear(0))
             }
-            Phase::Clear(i) => match self.items(i, nc.saturating_add(nr), b, Self::clear_item) {
+            Phase::Clear(i) => match self.items(i, nc + nr, b, Self::clear_item) {
                 Some(i) => Phase::Clear(i),
                 None => self.begin_pass(PassKind::Linearize),
             },
@@ -265,7 +265,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
 
     /// [`Self::advance`] for the phases of the conjugate-gradient solve.
     fn advance_pcg(&mut self, phase: Phase, b: &mut Budget) -> Phase {
-        let (nc, nr) = (self.problem.n_cams, self.problem.n_rigs);
+        let (nc, nr) = (u32::from(self.problem.n_cams), u32::from(self.problem.n_rigs));
         match phase {
             Phase::PcgStart(i) => match self.items(i, nr, b, Self::pcg_start) {
                 Some(i) => Phase::PcgStart(i),
