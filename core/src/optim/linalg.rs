@@ -250,6 +250,16 @@ impl PoseMatrix {
         ]
     }
 
+    /// Column `k` of `R` (0, 1 or 2).
+    pub(super) fn column(&self, k: usize) -> Vec3 {
+        let r = &self.r;
+        match k {
+            0 => [r[0], r[3], r[6]],
+            1 => [r[1], r[4], r[7]],
+            _ => [r[2], r[5], r[8]],
+        }
+    }
+
     /// `R^T v`.
     pub(super) fn rotate_back(&self, v: &Vec3) -> Vec3 {
         let r = &self.r;

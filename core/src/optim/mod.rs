@@ -79,17 +79,17 @@
 //!
 //! | unit | instructions |
 //! | --- | --- |
-//! | observation visit: Schur terms (linearization, sweep 1, with the 6x6 update) | ~790 |
-//! | observation visit: linearization (sweep 0, camera and point blocks) | ~660 |
-//! | observation visit: product or back-substitution | ~440 |
+//! | observation visit: Schur terms (linearization, sweep 1, with the 6x6 block update) | ~800; ~880 with a camera offset |
+//! | observation visit: linearization (sweep 0, camera and point blocks) | ~640 |
+//! | observation visit: point block (product sweep 0, back-substitution in trial and apply) | ~445 |
+//! | observation visit: camera part of the product (sweep 1) | ~350 |
 //! | observation visit: trial cost | ~180 |
-//! | end of a sweep (damped 3x3 inverse) / end of a point | ~115 / ~10 |
-//! | rig or camera item | 13 to ~530 (the damped 6x6 Cholesky) |
+//! | end of a sweep (damped 3x3 inverse) / end of a point | ~120 / ~10 |
+//! | rig or camera item | 13 to ~530 (the damped 6x6 Cholesky); ~1,250 to reduce a camera with an offset (its 6x6 block through `Ad`) |
 //!
-//! On average 421 instructions per unit (local BA) and 428 (segmented); no step of 5,000 units
-//! exceeded 3.5 M instructions (at most 694 per unit over a step). Quota 5,000 therefore keeps
-//! every step under the back end's 4 M bar with a margin; 6,000 does not in segmented mode
-//! (4.18 M).
+//! On average 391 instructions per unit (local BA) and 401 (segmented). With quota 5,000 no step
+//! exceeded 3.40 M instructions (at most 680 per unit over a step): that quota keeps every step
+//! under the back end's 4 M bar with a margin; 6,000 does not in segmented mode (4.09 M).
 //!
 //! # Memory
 //!
@@ -132,11 +132,11 @@
 //! grep -h '^totals:' target/ba-cg/cg.out.*.* | sort -k2 -n | tail -1
 //! ```
 //!
-//! Measured (2026-11, quota 5,000): local BA 4 LM iterations, 23 PCG iterations, 472,799 units,
-//! 199.0 M instructions in 95 steps (median step 2.05 M, max 3.33 M): about 50 M instructions per
-//! LM iteration, of which a PCG iteration (one matrix-free product) is about 4.8 M. Segmented
-//! (12 free segments): 4 LM iterations, 18 PCG iterations, 393,314 units, 168.2 M instructions
-//! in 79 steps (max 3.47 M).
+//! Measured (2026-11-23, quota 5,000): local BA 4 LM iterations (3 accepted), 23 PCG
+//! iterations, 465,625 units, 182.2 M instructions in 94 steps (median step 1.84 M, max 3.28 M):
+//! about 45 M instructions per LM iteration, of which a PCG iteration (one matrix-free product)
+//! is about 4.5 M. Segmented (12 free segments): 4 LM iterations, 18 PCG iterations, 393,314
+//! units, 157.6 M instructions in 79 steps (max 3.40 M).
 
 mod items;
 mod linalg;

@@ -238,19 +238,27 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             return;
         };
         let Some(t) = s.model.terms(cam, p_w, &obs) else { return };
-        let mut f = [[0.0f32; 3]; 6];
+        // F = J_c^T W J_l = [I; [p_c]x] M R with M = sum_k w_k a_k a_k^T (camera frame).
+        let mut m: Sym3 = [0.0; 6];
         for row in t.rows() {
-            let jr = pose_row(&t.p_c, &row.a);
-            let lr = cam.rotate_back(&row.a);
-            for i in 0..6 {
-                axpy3(&mut f[i], row.w * jr[i], &lr);
-            }
+            sym3_rank1(&mut m, row.w, &row.a);
         }
+        // Gradient Schur term: F u = [M R u; p_c x (M R u)].
+        let m_ru = sym3_mul(&m, &cam.rotate(&s.acc.u));
         if let Some(g) = w.cam_acc.get_mut(c) {
-            for i in 0..6 {
-                g[i] -= dot3(&f[i], &s.acc.u);
+            let lower = cross3(&t.p_c, &m_ru);
+            for k in 0..3 {
+                g[k] -= m_ru[k];
+                g[k + 3] -= lower[k];
             }
         }
+        // Columns of M R, then of F.
+        let cols: [Vec3; 3] = core::array::from_fn(|k| sym3_mul(&m, &cam.column(k)));
+        let lower: [Vec3; 3] = core::array::from_fn(|k| cross3(&t.p_c, &cols[k]));
+        let mut f: [Vec3; 6] = core::array::from_fn(|i| {
+            let src = if i < 3 { &cols } else { &lower };
+            [src[0][i % 3], src[1][i % 3], src[2][i % 3]]
+        });
         if let Some(offset) = p.offset_matrix(c) {
             // Column by column: each column of F is a 6-vector in camera coordinates.
             let cols: [Vec6; 3] = core::array::from_fn(|k| {
@@ -324,14 +332,23 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             return;
         };
         let Some(t) = s.model.terms(cam, p_w, &obs) else { return };
-        let d = displacement(&x, &t.p_c);
-        let Some(y) = w.cam_acc.get_mut(c) else { return };
-        for row in t.rows() {
-            let mut e = dot3(&row.a, &d);
-            if point_free {
-                e -= dot3(&cam.rotate_back(&row.a), &s.acc.u);
+        // Per row, J_c x - J_l u = a . (d - R u): the point's camera-frame displacement.
+        let mut e = displacement(&x, &t.p_c);
+        if point_free {
+            let r_u = cam.rotate(&s.acc.u);
+            for (ek, rk) in e.iter_mut().zip(r_u) {
+                *ek -= rk;
             }
-            axpy6(y, row.w * e, &pose_row(&t.p_c, &row.a));
+        }
+        // sum_k w_k e_k [a_k; p_c x a_k] = [m; p_c x m] with m = sum_k w_k e_k a_k.
+        let mut m = [0.0f32; 3];
+        for row in t.rows() {
+            axpy3(&mut m, row.w * dot3(&row.a, &e), &row.a);
+        }
+        if let Some(y) = w.cam_acc.get_mut(c) {
+            for (yk, jk) in y.iter_mut().zip(pose_row(&t.p_c, &m)) {
+                *yk += jk;
+            }
         }
     }
 
