@@ -36,10 +36,11 @@
 //! when a point's observations from one rig are consecutive, as in local BA, otherwise a positive
 //! definite approximation). Points then get their steps by back-substitution. A trial that
 //! lowers the cost without losing an observation in front of its camera is accepted (lambda
-//! / 10), otherwise rejected (lambda * 10). The solve ends when an accepted step changes the cost
-//! by less than [`BaParams::function_tolerance`] or moves nothing by more than the step
-//! thresholds ([`Termination::Converged`]), after [`BaParams::max_iterations`] solves, or when
-//! lambda exceeds 1e6 ([`Termination::Stalled`]: no step lowers the cost at f32 precision).
+//! / 10), otherwise rejected (lambda * 10). The solve ends when a step, accepted or not, changes
+//! the cost by less than [`BaParams::function_tolerance`] or moves nothing by more than the step
+//! thresholds ([`Termination::Converged`]: at the minimum a trial differs from the current cost
+//! by rounding only), after [`BaParams::max_iterations`] solves, or when lambda exceeds 1e6
+//! ([`Termination::Stalled`]).
 //!
 //! Why matrix-free: a dense reduced system for 65 keyframes is 390 x 390 f32, 608 KB; its
 //! packed triangle still 305 KB. PCG needs five 6-vectors and one 6x6 factor per rig instead.
@@ -301,7 +302,7 @@ impl core::error::Error for BaError {}
 pub enum Termination {
     /// Not finished yet.
     NotFinished,
-    /// An accepted step changed the cost or the variables by less than the tolerances.
+    /// A step (accepted or not) changed the cost or the variables by less than the tolerances.
     Converged,
     /// [`BaParams::max_iterations`] solves done.
     MaxIterations,
