@@ -15,6 +15,8 @@
 //!   and the keyframes' observations.
 //! - [`tracking`]: robust SE(3) pose estimation (LM with Huber, RANSAC on 3-point sets), the
 //!   constant-velocity motion model.
+//! - [`optim`]: fixed-memory, resumable bundle adjustment (local and segmented global BA):
+//!   Levenberg-Marquardt on the Schur-reduced camera system, solved matrix-free by PCG.
 //! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
 //!   recorded datasets and the synthetic renderer implement.
 //!
@@ -32,4 +34,5 @@ pub mod geometry;
 pub mod image;
 pub mod map;
 pub mod matching;
+pub mod optim;
 pub mod tracking;
