@@ -17,6 +17,9 @@
 //!   constant-velocity motion model.
 //! - [`optim`]: fixed-memory, resumable bundle adjustment (local and segmented global BA):
 //!   Levenberg-Marquardt on the Schur-reduced camera system, solved matrix-free by PCG.
+//! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
+//!   segmented global bundle adjustment, in bounded steps.
+//! - [`system`]: the facade, `Slam::process(frame)` and `Slam::step_backend(work_quota)`.
 //! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
 //!   recorded datasets and the synthetic renderer implement.
 //!
@@ -27,6 +30,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod backend;
 pub mod config;
 pub mod features;
 pub mod frame;
@@ -35,4 +39,5 @@ pub mod image;
 pub mod map;
 pub mod matching;
 pub mod optim;
+pub mod system;
 pub mod tracking;

@@ -228,6 +228,13 @@ impl<const K: usize, const L: usize> Map<K, L> {
         self.landmarks.get_mut(id.0)
     }
 
+    /// The landmark in arena slot `index`, mutably, if the slot is taken (for passes over every
+    /// landmark by slot).
+    pub fn landmark_at_mut(&mut self, index: usize) -> Option<&mut Landmark> {
+        let h = self.landmarks.handle_at(index)?;
+        self.landmarks.get_mut(h)
+    }
+
     /// Every keyframe id, in slot order (not creation order: see [`KeyFrame::seq`]).
     pub fn keyframe_ids(&self) -> impl Iterator<Item = KeyFrameId> + '_ {
         self.keyframes.iter().map(|(h, _)| KeyFrameId(h))

@@ -232,6 +232,75 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         Ok(ObservationId(i as u16))
     }
 
+    /// Adds a point `p_w` with `slots` observations to be given later, in any order, by
+    /// [`Self::set_observation`] (for callers whose observations are not grouped by point, such
+    /// as keyframes' lists). Every slot must then be set before [`Self::start`]; a slot left
+    /// unset would read as an observation by camera 0 at pixel `MIN_OBSERVATION_PX`.
+    ///
+    /// # Errors
+    /// Those of [`Self::add_point`]; [`BaError::Full`] when the slots do not fit.
+    pub fn add_point_with_slots(
+        &mut self,
+        p_w: &Point3<f32>,
+        fixed: bool,
+        slots: usize,
+    ) -> Result<PointId, BaError> {
+        let room = O - usize::from(self.problem.n_obs);
+        if slots > room {
+            return Err(BaError::Full { kind: VariableKind::Observation, capacity: O });
+        }
+        let id = self.add_point(p_w, fixed)?;
+        let p = &mut self.problem;
+        // `slots <= O - n_obs` and `O <= 65,535`: the sum fits u16.
+        p.n_obs += slots as u16;
+        if let Some(end) = p.point_end.get_mut(id.index()) {
+            *end = p.n_obs;
+        }
+        Ok(id)
+    }
+
+    /// Sets slot `slot` of `point` (added by [`Self::add_point_with_slots`]) to the observation
+    /// by `camera` at pixel `uv` with the measured depth `depth_m`, if any (see
+    /// [`Self::add_observation`] for the encoding). A depth that cannot be stored is dropped
+    /// (the pixel is kept): a slot is never left unset by a bad depth.
+    ///
+    /// # Errors
+    /// [`BaError::Busy`], [`BaError::UnknownCamera`], [`BaError::InvalidPixel`], or
+    /// [`BaError::Full`] naming the point's slots when `slot` is past them or `point` unknown.
+    pub fn set_observation(
+        &mut self,
+        point: PointId,
+        slot: usize,
+        camera: CameraId,
+        uv: Point2<f32>,
+        depth_m: Option<f32>,
+    ) -> Result<ObservationId, BaError> {
+        self.check_idle()?;
+        let p = &self.problem;
+        if camera.0 >= p.n_cams {
+            return Err(BaError::UnknownCamera { index: camera.index() });
+        }
+        let (start, end) = p.obs_range(point.index());
+        let i = start + slot;
+        if point.0 >= p.n_points || i >= end {
+            return Err(BaError::Full { kind: VariableKind::Observation, capacity: end - start });
+        }
+        let obs = StoredObservation::encode(camera.0, uv.x, uv.y, depth_m)
+            .or_else(|pixel| {
+                if pixel {
+                    Err(())
+                } else {
+                    StoredObservation::encode(camera.0, uv.x, uv.y, None).map_err(|_| ())
+                }
+            })
+            .map_err(|()| BaError::InvalidPixel { u: uv.x, v: uv.y })?;
+        if let Some(o) = self.problem.obs.get_mut(i) {
+            *o = obs;
+        }
+        // `i < O <= 65,535`.
+        Ok(ObservationId(i as u16))
+    }
+
     /// The rig's current pose `t_sw` (world to rig); `None` for an unknown id.
     pub fn rig_pose(&self, rig: RigId) -> Option<Pose> {
         (rig.0 < self.problem.n_rigs)

@@ -51,7 +51,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             map.remove_orphans(|_| false);
             return None;
         }
-        let _ = tracked;
+        self.last_keyframe_counts = (tracked, created);
         self.reference = Some((kf, t_wc));
         self.inliers_after_keyframe = None;
         self.stats.keyframes = self.stats.keyframes.saturating_add(1);

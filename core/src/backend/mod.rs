@@ -1,0 +1,360 @@
+//! The back end: bundle adjustment of the map in bounded steps (paper Sec. II.B).
+//!
+//! # What it does
+//!
+//! - **Local BA** after each new keyframe: a window of keyframes chosen by covisibility with it
+//!   (see `local.rs`: the keyframes sharing the most landmarks with it, then with those, up to
+//!   [`capacity::LOCAL_WINDOW_MAX`] = 65), every landmark they observe (at least twice), and as
+//!   fixed poses the other keyframes observing those landmarks.
+//! - **Reference landmarks**: a landmark counts the bundle adjustments that optimized its
+//!   position; at [`BackendParams::reference_after`] (10) it becomes a reference landmark, fixed in
+//!   every later adjustment, where it anchors the poses and costs no variables.
+//! - **Segmented global BA** each time a new segment of [`BackendParams::segment_keyframes`]
+//!   keyframes (by creation number) is complete (see `global.rs`): inside a segment the relative
+//!   poses stay fixed; only one pose per segment and the landmarks seen from two or more
+//!   segments (the joints) are optimized; the other landmarks move with their segment. Memory is
+//!   bounded whatever the map size: the map itself is bounded, and the problem's capacities are
+//!   those of one [`BoardBundleAdjuster`].
+//!
+//! # Scheduling
+//!
+//! [`Backend::step`] does a bounded amount of work and returns: building a problem (one step,
+//! charged by the observations it scans), then solver steps of at most `work_quota` units (see
+//! [`crate::optim`]), then writing the result back to the map (one step). New keyframes only
+//! set the next local BA's target ([`Backend::keyframe_added`]), so the back end never queues
+//! unbounded work: when it is busy, it adjusts around the newest keyframe next. Given the same
+//! frames and the same quota per step, the results are the same bits however the caller
+//! schedules the steps in time (deterministic replay gives a fixed quota per frame).
+//!
+//! While a solve runs, the front end keeps tracking and the map keeps growing: the solve works on
+//! a copy of the window's poses and positions, and only keyframes and landmarks still in the map
+//! when it finishes get its results (ids are generation-checked).
+
+mod global;
+mod local;
+
+use core::fmt;
+
+use heapless::Vec;
+
+use crate::config::capacity;
+use crate::geometry::PinholeCamera;
+use crate::map::{KeyFrameId, LandmarkId, Map};
+use crate::optim::{
+    BaError, BaParams, BaStatus, BaSummary, BundleAdjuster, CameraId, PointId, Termination,
+};
+
+/// Rigs of the back end's adjuster: the local window plus fixed neighbours.
+pub const BA_RIGS: usize = capacity::LOCAL_WINDOW_MAX + 31;
+/// Cameras of the back end's adjuster: every keyframe of the map in a global BA.
+pub const BA_CAMERAS: usize = 256;
+/// Points of the back end's adjuster.
+pub const BA_POINTS: usize = 1536;
+/// Observations of the back end's adjuster.
+pub const BA_OBSERVATIONS: usize = 8192;
+
+/// The one adjuster the back end uses for local and global BA (they never run at once).
+pub type BoardBundleAdjuster = BundleAdjuster<BA_RIGS, BA_CAMERAS, BA_POINTS, BA_OBSERVATIONS>;
+
+/// Tunables of the back end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BackendParams {
+    /// Solver settings of local BA. Default: [`BaParams::DEFAULT`] with 5 iterations.
+    pub local: BaParams,
+    /// Solver settings of segmented global BA. Default: [`BaParams::DEFAULT`] with 5 iterations.
+    pub global: BaParams,
+    /// Keyframes in a local window at most (free poses), 1..=[`capacity::LOCAL_WINDOW_MAX`].
+    /// Default 65.
+    pub window_max: usize,
+    /// A keyframe joins the window when it shares at least this many landmarks with it.
+    /// Default 10.
+    pub min_shared_landmarks: u16,
+    /// Covisibility levels the window grows by (1: keyframes sharing landmarks with the new one;
+    /// 2: also those sharing with them). Default 2.
+    pub window_levels: u8,
+    /// Bundle adjustments after which a landmark becomes a reference landmark. Default 10.
+    pub reference_after: u8,
+    /// Keyframes per segment of global BA (by creation number). Default
+    /// [`capacity::SEGMENT_MAX_KEYFRAMES`].
+    pub segment_keyframes: u32,
+    /// Run segmented global BA when a segment completes. Default `true`.
+    pub global_enabled: bool,
+}
+
+impl BackendParams {
+    /// The defaults, documented per field.
+    pub const DEFAULT: Self = Self {
+        local: BaParams { max_iterations: 5, ..BaParams::DEFAULT },
+        global: BaParams { max_iterations: 5, ..BaParams::DEFAULT },
+        window_max: capacity::LOCAL_WINDOW_MAX,
+        min_shared_landmarks: 10,
+        window_levels: 2,
+        reference_after: 10,
+        segment_keyframes: capacity::SEGMENT_MAX_KEYFRAMES as u32,
+        global_enabled: true,
+    };
+
+    /// Whether every value is in range.
+    pub fn is_valid(&self) -> bool {
+        self.local.is_valid()
+            && self.global.is_valid()
+            && (1..=capacity::LOCAL_WINDOW_MAX).contains(&self.window_max)
+            && self.window_levels >= 1
+            && self.reference_after >= 1
+            && self.segment_keyframes >= 1
+    }
+}
+
+impl Default for BackendParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Which adjustment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BaKind {
+    /// Local BA around a keyframe.
+    Local,
+    /// Segmented global BA.
+    Global,
+}
+
+/// What one [`Backend::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BackendStatus {
+    /// Nothing to do.
+    Idle,
+    /// Built a problem (the solve starts next step).
+    Built(BaKind),
+    /// Solving; more steps needed.
+    Solving(BaKind),
+    /// A solve finished and its result was written to the map.
+    Finished(BaKind, BaSummary),
+}
+
+/// Why a step failed (bad parameters; the back end is idle again after it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum BackendError {
+    /// A [`BackendParams`] value is out of range.
+    InvalidParams,
+    /// The solver refused its input (a bug or a corrupted map; the job was dropped).
+    Solver(BaError),
+}
+
+impl fmt::Display for BackendError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidParams => write!(f, "back-end parameters out of range"),
+            Self::Solver(e) => write!(f, "bundle adjuster: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for BackendError {}
+
+/// Running totals since [`Backend::new`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BackendStats {
+    /// Local adjustments finished and written back.
+    pub local_runs: u32,
+    /// Global adjustments finished and written back.
+    pub global_runs: u32,
+    /// Local windows by size: `window_sizes[n]` counts windows of `n` free keyframes.
+    pub window_sizes: [u32; capacity::LOCAL_WINDOW_MAX + 1],
+    /// Over all local adjustments: points added free and fixed (reference landmarks).
+    pub free_points: u64,
+    /// See `free_points`.
+    pub fixed_points: u64,
+    /// Landmarks made reference landmarks.
+    pub reference_landmarks_made: u32,
+    /// Steps taken.
+    pub steps: u64,
+    /// Work units charged (solver units and problem building).
+    pub work_units: u64,
+}
+
+/// The job in progress.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Job {
+    Idle,
+    /// A problem is built; the solve runs.
+    Solving(BaKind),
+}
+
+/// The back end (see the module documentation).
+#[derive(Debug)]
+pub struct Backend {
+    params: BackendParams,
+    ba: BoardBundleAdjuster,
+    job: Job,
+    /// The newest keyframe not yet adjusted around.
+    pending: Option<KeyFrameId>,
+    /// Segment of the newest keyframe at the last global BA.
+    last_global_segment: Option<u32>,
+    /// Newest keyframe creation number seen.
+    newest_seq: u32,
+    /// The keyframe of every camera of the problem, its id there, and whether its pose is free.
+    cameras: Vec<(KeyFrameId, CameraId, bool), BA_CAMERAS>,
+    /// The landmark of every point of the problem, its id there once added, and whether it is
+    /// free.
+    points: Vec<(LandmarkId, Option<PointId>, bool), BA_POINTS>,
+    /// Global BA: each rig's pose before the solve (`t_sw`).
+    rig_before: Vec<crate::geometry::Pose, BA_CAMERAS>,
+    scratch: local::Scratch,
+    stats: BackendStats,
+}
+
+impl Default for Backend {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Backend {
+    /// An idle back end with [`BackendParams::DEFAULT`] (`const`, for a `static`).
+    pub const fn new() -> Self {
+        Self::with_params(BackendParams::DEFAULT)
+    }
+
+    /// An idle back end with `params` (checked on every step).
+    pub const fn with_params(params: BackendParams) -> Self {
+        Self {
+            params,
+            ba: BundleAdjuster::new(),
+            job: Job::Idle,
+            pending: None,
+            last_global_segment: None,
+            newest_seq: 0,
+            cameras: Vec::new(),
+            points: Vec::new(),
+            rig_before: Vec::new(),
+            scratch: local::Scratch::new(),
+            stats: BackendStats {
+                local_runs: 0,
+                global_runs: 0,
+                window_sizes: [0; capacity::LOCAL_WINDOW_MAX + 1],
+                free_points: 0,
+                fixed_points: 0,
+                reference_landmarks_made: 0,
+                steps: 0,
+                work_units: 0,
+            },
+        }
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &BackendParams {
+        &self.params
+    }
+
+    /// Running totals.
+    pub fn stats(&self) -> &BackendStats {
+        &self.stats
+    }
+
+    /// Whether a solve is in progress.
+    pub fn is_busy(&self) -> bool {
+        self.job != Job::Idle
+    }
+
+    /// Tells the back end that the front end made keyframe `kf` with creation number `seq`: the
+    /// next local BA adjusts around it (replacing an older keyframe still waiting).
+    pub fn keyframe_added(&mut self, kf: KeyFrameId, seq: u32) {
+        self.pending = Some(kf);
+        self.newest_seq = self.newest_seq.max(seq);
+    }
+
+    /// Does at most about `work_quota` units of work on `map` (see the module documentation).
+    /// `cam` is the camera the map's observations were made with.
+    ///
+    /// # Errors
+    /// [`BackendError::InvalidParams`]; [`BackendError::Solver`] when the solver refuses a
+    /// problem (the job is dropped, the map unchanged).
+    pub fn step<const K: usize, const L: usize>(
+        &mut self,
+        map: &mut Map<K, L>,
+        cam: &PinholeCamera,
+        work_quota: u32,
+    ) -> Result<BackendStatus, BackendError> {
+        if !self.params.is_valid() {
+            return Err(BackendError::InvalidParams);
+        }
+        self.stats.steps += 1;
+        match self.job {
+            Job::Idle => self.start_job(map, cam),
+            Job::Solving(kind) => {
+                let status = self.ba.step(work_quota.max(1)).map_err(|e| self.abort(e))?;
+                let BaStatus::Finished(summary) = status else {
+                    return Ok(BackendStatus::Solving(kind));
+                };
+                self.stats.work_units += summary.work_units;
+                if summary.termination != Termination::NonFinite {
+                    match kind {
+                        BaKind::Local => self.write_back_local(map),
+                        BaKind::Global => self.write_back_global(map),
+                    }
+                }
+                self.ba.clear();
+                self.job = Job::Idle;
+                Ok(BackendStatus::Finished(kind, summary))
+            }
+        }
+    }
+
+    /// Builds the next problem, if any, and starts its solve.
+    fn start_job<const K: usize, const L: usize>(
+        &mut self,
+        map: &Map<K, L>,
+        cam: &PinholeCamera,
+    ) -> Result<BackendStatus, BackendError> {
+        let segment = self.newest_seq / self.params.segment_keyframes.max(1);
+        let global_due = self.params.global_enabled
+            && segment > 0
+            && self.last_global_segment.is_none_or(|s| segment > s);
+        let (kind, built) = match self.pending.take() {
+            Some(kf) => (BaKind::Local, self.build_local(map, kf)),
+            None if global_due => {
+                self.last_global_segment = Some(segment);
+                (BaKind::Global, self.build_global(map))
+            }
+            None => return Ok(BackendStatus::Idle),
+        };
+        match built {
+            Ok(scanned) => self.stats.work_units += scanned,
+            Err(e) => return Err(self.abort(e)),
+        }
+        let params = match kind {
+            BaKind::Local => self.params.local,
+            BaKind::Global => self.params.global,
+        };
+        self.ba.start(cam, &params).map_err(|e| self.abort(e))?;
+        self.job = Job::Solving(kind);
+        Ok(BackendStatus::Built(kind))
+    }
+
+    /// Drops the job after a solver error.
+    fn abort(&mut self, e: BaError) -> BackendError {
+        self.ba.clear();
+        self.job = Job::Idle;
+        BackendError::Solver(e)
+    }
+
+    /// Counts one optimization of a free landmark, making it a reference landmark at the
+    /// threshold.
+    fn count_optimization<const K: usize, const L: usize>(&mut self, map: &mut Map<K, L>, id: LandmarkId) {
+        let threshold = self.params.reference_after;
+        let Some(lm) = map.landmark_mut(id) else { return };
+        lm.times_optimized = lm.times_optimized.saturating_add(1);
+        if !lm.reference && lm.times_optimized >= threshold {
+            lm.reference = true;
+            self.stats.reference_landmarks_made = self.stats.reference_landmarks_made.saturating_add(1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,1 @@
+//! Back-end tests (compiled only under `cfg(test)`).

@@ -1,0 +1,103 @@
+//! The facade: [`Slam::process`] runs the front end on a frame, [`Slam::step_backend`] advances
+//! the back end by a bounded amount of work. The caller schedules the two: on the firmware the
+//! back end runs between frames; on the host deterministic replay gives it a fixed quota per
+//! frame (or a thread, trading determinism for throughput).
+//!
+//! ```
+//! use ferroslam_core::system::QvgaSlam;
+//! // About 0.9 MB: give it a `static` on a board, a box on a host.
+//! let slam: Box<QvgaSlam> = Box::default();
+//! assert_eq!(slam.map().num_keyframes(), 0);
+//! ```
+
+use crate::backend::{Backend, BackendError, BackendParams, BackendStatus};
+use crate::frame::RgbdFrame;
+use crate::geometry::PinholeCamera;
+use crate::map::BoardMap;
+use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams};
+
+/// SLAM at the reference board's QVGA profile (320 x 240).
+pub type QvgaSlam = Slam<320, 240>;
+/// SLAM at the VGA profile (640 x 480).
+pub type VgaSlam = Slam<640, 480>;
+
+/// The front end's parameters in SLAM mode: [`FrontendParams::DEFAULT`] without depth fusion
+/// (bundle adjustment refines landmark positions instead).
+pub const SLAM_FRONTEND: FrontendParams = FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
+
+/// The front end, the map and the back end (see the module documentation).
+#[derive(Debug)]
+pub struct Slam<const W: usize, const H: usize> {
+    frontend: Frontend<W, H>,
+    map: BoardMap,
+    backend: Backend,
+}
+
+impl<const W: usize, const H: usize> Default for Slam<W, H> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const W: usize, const H: usize> Slam<W, H> {
+    /// A system with [`SLAM_FRONTEND`] and [`BackendParams::DEFAULT`] (`const`, for a
+    /// `static`).
+    pub const fn new() -> Self {
+        Self::with_params(SLAM_FRONTEND, BackendParams::DEFAULT)
+    }
+
+    /// A system with the given parameters.
+    pub const fn with_params(frontend: FrontendParams, backend: BackendParams) -> Self {
+        Self {
+            frontend: Frontend::with_params(frontend),
+            map: BoardMap::new(),
+            backend: Backend::with_params(backend),
+        }
+    }
+
+    /// Tracks one frame and hands a new keyframe to the back end (see
+    /// [`Frontend::process`]).
+    ///
+    /// # Errors
+    /// As [`Frontend::process`].
+    pub fn process(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Result<FrameResult, FrontendError> {
+        let result = self.frontend.process(frame, cam, &mut self.map)?;
+        if let Some(kf) = result.keyframe {
+            if let Some(k) = self.map.keyframe(kf) {
+                self.backend.keyframe_added(kf, k.seq);
+            }
+        }
+        Ok(result)
+    }
+
+    /// Advances the back end by at most about `work_quota` units (see [`Backend::step`]).
+    ///
+    /// # Errors
+    /// As [`Backend::step`].
+    pub fn step_backend(
+        &mut self,
+        cam: &PinholeCamera,
+        work_quota: u32,
+    ) -> Result<BackendStatus, BackendError> {
+        self.backend.step(&mut self.map, cam, work_quota)
+    }
+
+    /// The map.
+    pub fn map(&self) -> &BoardMap {
+        &self.map
+    }
+
+    /// The front end.
+    pub fn frontend(&self) -> &Frontend<W, H> {
+        &self.frontend
+    }
+
+    /// The back end.
+    pub fn backend(&self) -> &Backend {
+        &self.backend
+    }
+}
