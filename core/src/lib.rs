@@ -13,8 +13,11 @@
 //!   Lucas-Kanade, with a forward-backward check.
 //! - [`tracking`]: robust SE(3) pose estimation (LM with Huber, RANSAC on 3-point sets), the
 //!   constant-velocity motion model.
-//! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
-//!   recorded datasets and the synthetic renderer implement.
+//! - [`frame`]: an RGB-D frame as the core sees it, the [`frame::FrameSource`] port that cameras,
+//!   recorded datasets and the synthetic renderer implement, and the [`frame::TelemetrySink`] port
+//!   that the firmware's serial link and the host's writers implement.
+//! - [`wire`]: the versioned serial message schema (pose, status, cost, fault) shared by firmware
+//!   and host: postcard bodies, CRC-32, COBS framing, and a stream decoder that resynchronizes.
 //!
 //! Rules: no heap (every capacity is in a type), no `unsafe`, no panics on bad input (errors are
 //! values), f32 arithmetic with transcendental functions through the pure-Rust `libm` on every target
@@ -30,3 +33,4 @@ pub mod geometry;
 pub mod image;
 pub mod matching;
 pub mod tracking;
+pub mod wire;
