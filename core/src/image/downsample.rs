@@ -64,7 +64,11 @@ fn check_row_pair(top: usize, bottom: usize, out: usize) -> Result<(), ImageErro
 /// # Errors
 /// [`ImageError::SizeMismatch`] unless `top` and `bottom` have one length and `out` half of it
 /// (rounded down); [`ImageError::ZeroSize`] for rows shorter than 2 pixels.
-pub fn downsample_gray_row_pair(top: &[u8], bottom: &[u8], out: &mut [u8]) -> Result<(), ImageError> {
+pub fn downsample_gray_row_pair(
+    top: &[u8],
+    bottom: &[u8],
+    out: &mut [u8],
+) -> Result<(), ImageError> {
     check_row_pair(top.len(), bottom.len(), out.len())?;
     row_pair(top, bottom, out, gray_block);
     Ok(())
@@ -317,7 +321,8 @@ mod tests {
             let d = ImageView::new(&depth, w, h, stride).unwrap();
             let mut whole_g = std::vec![0u8; ow * oh];
             let mut whole_d = std::vec![0u16; ow * oh];
-            downsample_gray_2x(&g, &mut GrayViewMut::packed(&mut whole_g, ow, oh).unwrap()).unwrap();
+            downsample_gray_2x(&g, &mut GrayViewMut::packed(&mut whole_g, ow, oh).unwrap())
+                .unwrap();
             downsample_depth_2x(&d, &mut ImageViewMut::packed(&mut whole_d, ow, oh).unwrap())
                 .unwrap();
             let mut streamed_g = std::vec![0u8; ow * oh];

@@ -84,7 +84,10 @@ impl fmt::Display for FrameError {
             Self::Cobs => write!(f, "invalid COBS encoding"),
             Self::TooShort { len } => write!(f, "payload of {len} bytes is too short"),
             Self::Crc { received, computed } => {
-                write!(f, "CRC mismatch: frame says {received:#010x}, payload gives {computed:#010x}")
+                write!(
+                    f,
+                    "CRC mismatch: frame says {received:#010x}, payload gives {computed:#010x}"
+                )
             }
             Self::UnknownVersion { found } => {
                 write!(f, "schema version {found}, this decoder reads {SCHEMA_VERSION}")

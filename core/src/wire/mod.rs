@@ -43,8 +43,8 @@ mod tests;
 pub use codec::{EncodeError, FrameError, crc32, decode_frame, encode};
 pub use decoder::{DecoderStats, StreamDecoder};
 pub use message::{
-    CostMessage, FaultCode, FaultMessage, Message, PoseFlags, PoseMessage, StatusMessage,
-    TickUnit, TrackingState,
+    CostMessage, FaultCode, FaultMessage, Message, PoseFlags, PoseMessage, StatusMessage, TickUnit,
+    TrackingState,
 };
 
 /// The schema version this crate writes and reads (the first payload byte).

@@ -19,11 +19,11 @@ fn pose_message(i: u32) -> PoseMessage {
         t_wc,
         state: FrontendState::Tracking,
         tracked: true,
-        keyframe_created: i % 2 == 0,
+        keyframe_created: i.is_multiple_of(2),
         inliers: 120 + i as usize,
         matches: 70_000,
         guide_matches: 24,
-        bank_recovery: i % 3 == 0,
+        bank_recovery: i.is_multiple_of(3),
     };
     PoseMessage::from_frame_result(i, 1_305_031_102.175_304 + f64::from(i) / 30.0, &r)
 }
@@ -142,7 +142,8 @@ fn a_flipped_bit_costs_only_its_frame() {
         for at in 0..frames[1].len() - 1 {
             let mut f1 = frames[1].clone();
             f1[at] ^= 1 << bit;
-            let bytes = [frames[0].clone(), f1.clone(), frames[2].clone(), frames[3].clone()].concat();
+            let bytes =
+                [frames[0].clone(), f1.clone(), frames[2].clone(), frames[3].clone()].concat();
             let (ok, bad, s) = decode_all(&bytes);
             if f1[at] == 0 {
                 // The flip made a delimiter: frame 1 splits in two pieces, both dropped (one
