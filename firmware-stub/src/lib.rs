@@ -15,11 +15,9 @@
 //!   `embedded_io::Write` framing messages with postcard + CRC-32 + COBS (`ferroslam_core::wire`).
 //! - [`frame_file`]: the raw frame file (header, gray u8, depth u16 LE) that recorded frames travel
 //!   in from the host to the QEMU board, with its parser and its writer (used by the host too).
-//! - [`wi`]: the W(I) check (paper Eq. 3 at full and half resolution, and a checksum of the
-//!   half-resolution depth) and its one-line text result, computed identically here and on the host.
 //! - Cortex-M only: `semihosting` (host files and the command line through ARM semihosting),
 //!   `semihost_source` (recorded frames streamed from a host file), `cmsdk_uart` (the UART of
-//!   QEMU's MPS2 boards), `systick` (a SysTick tick clock).
+//!   QEMU's MPS2 boards), `systick` (a SysTick tick clock), `stack` (peak stack by painting).
 #![no_std]
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -28,14 +26,22 @@
 extern crate std;
 
 pub mod camera;
+#[cfg(target_os = "none")]
+#[allow(unsafe_code)]
+pub mod cmsdk_uart;
 pub mod frame_file;
 pub mod pipeline;
+#[cfg(target_os = "none")]
+pub mod semihost_source;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod semihosting;
 pub mod serial;
+#[cfg(target_os = "none")]
+#[allow(unsafe_code)]
+pub mod stack;
 pub mod stream;
-pub mod wi;
+#[cfg(target_os = "none")]
+pub mod systick;
 
 pub use frame_file::{FrameFile, FrameFileError, FrameHeader, decode_depth_le, write_frame};
-pub use wi::WiReport;
