@@ -1,4 +1,4 @@
-//! The serial link: the [`TelemetrySink`] of the board, writing [`wire`](ferroslam_core::wire)
+//! The serial link: the [`TelemetrySink`] of the board, writing [`wire`]
 //! frames (postcard body, CRC-32, COBS, `0x00` delimiter) to any [`embedded_io::Write`] (a UART).
 
 use core::fmt;

@@ -1,5 +1,5 @@
 //! The host end of the firmware's serial link: decoding a UART capture into
-//! [`wire`](ferroslam_core::wire) messages ([`decode_capture`]), and host writers that implement
+//! [`wire`] messages ([`decode_capture`]), and host writers that implement
 //! the core's [`TelemetrySink`] port as the firmware's serial link does ([`TumPoseWriter`],
 //! [`WireWriter`]).
 

@@ -70,7 +70,16 @@ pub fn run_all() -> Result<()> {
     step("docs", || {
         run(
             env!("CARGO"),
-            &["doc", "--no-deps", "-p", "ferroslam-core", "-p", "ferroslam-sim"],
+            &[
+                "doc",
+                "--no-deps",
+                "-p",
+                "ferroslam-core",
+                "-p",
+                "ferroslam-sim",
+                "-p",
+                "ferroslam-firmware",
+            ],
             &[("RUSTDOCFLAGS", "-D warnings")],
         )
     })?;
@@ -103,7 +112,7 @@ fn thumb_build_without_allocator() -> Result<()> {
 /// Fails when the ELF at `elf` holds an allocator symbol; prints its flash and RAM figures.
 fn no_allocator_in(elf: &Path) -> Result<()> {
     let out = Command::new("arm-none-eabi-nm")
-        .arg(&elf)
+        .arg(elf)
         .output()
         .context("arm-none-eabi-nm not found: apt-get install binutils-arm-none-eabi")?;
     if !out.status.success() {

@@ -97,7 +97,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     let qvga = DatasetOptions { profile: QVGA, ..vga };
     let dataset = Dataset::open(&opts.dataset, &qvga)?;
-    let c = dataset.calibration().clone();
+    let c = *dataset.calibration();
     let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
         .map_err(|e| anyhow!("calibration: {e}"))?;
 
@@ -357,4 +357,91 @@ fn write_cost_json(
         ram + u64::from(stack),
         out.display()
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use ferroslam_sim::commands::datapath::{DataPathRun, OdometryFrame};
+
+    fn pose(i: u32) -> PoseMessage {
+        PoseMessage {
+            frame_index: i,
+            timestamp_s: 5.0 + f64::from(i),
+            translation_m: [0.1, 0.2, 0.3 * i as f32],
+            rotation_xyzw: [0.0, 0.6, 0.0, 0.8],
+            state: TrackingState::Tracking,
+            flags: PoseFlags(PoseFlags::TRACKED),
+            inliers: 40,
+            matches: 50,
+        }
+    }
+
+    /// The host run the poses `fw` say happened.
+    fn host_of(fw: &[PoseMessage]) -> OdometryRun {
+        let per_frame = fw
+            .iter()
+            .map(|p| OdometryFrame {
+                timestamp_s: p.timestamp_s,
+                state: "tracking",
+                tracked: true,
+                keyframe: false,
+                inliers: 40,
+                matches: 50,
+                guide_matches: 0,
+                bank_recovery: false,
+            })
+            .collect();
+        let data = DataPathRun {
+            frames: fw.len(),
+            width: 320,
+            height: 240,
+            per_frame: Vec::new(),
+            source_wait_s: 0.0,
+            process_s: 0.0,
+        };
+        OdometryRun {
+            data,
+            camera: Trajectory::new(fw.iter().map(stamped_pose).collect()),
+            keyframes: Trajectory::new(Vec::new()),
+            per_frame,
+            tracked_frames: fw.len(),
+            lost_frames: 0,
+            state_bytes: 0,
+        }
+    }
+
+    #[test]
+    fn the_first_differing_frame_and_field_are_named() {
+        let fw: Vec<PoseMessage> = (0..4).map(pose).collect();
+        let host = host_of(&fw);
+        assert_eq!(first_difference(&fw, &host), None);
+        // One bit of one quaternion component of frame 2.
+        let mut changed = fw.clone();
+        changed[2].rotation_xyzw[1] = f32::from_bits(changed[2].rotation_xyzw[1].to_bits() ^ 1);
+        let diff = first_difference(&changed, &host).unwrap();
+        assert!(diff.starts_with("frame 2 (t = 7 s), rotation_xyzw[1]: firmware"), "{diff}");
+        let mut fewer = fw.clone();
+        fewer.pop();
+        assert!(first_difference(&fewer, &host).unwrap().contains("sent 3 poses"));
+        let mut lost = fw;
+        lost[1].state = TrackingState::Lost;
+        let diff = first_difference(&lost, &host).unwrap();
+        assert!(diff.contains("state: firmware lost, host tracking"), "{diff}");
+    }
+
+    #[test]
+    fn options_parse() {
+        let args: Vec<String> =
+            ["data", "--max-frames", "7", "--out", "o"].iter().map(|s| s.to_string()).collect();
+        let o = ReplayOptions::parse(&args, "d".into()).unwrap();
+        assert_eq!((o.dataset, o.max_frames, o.out), ("data".into(), 7, "o".into()));
+        assert!(ReplayOptions::parse(&[], "d".into()).is_err());
+        assert!(
+            ReplayOptions::parse(&["x".into(), "--max-frames".into(), "0".into()], "d".into())
+                .is_err()
+        );
+    }
 }

@@ -1,6 +1,6 @@
 //! The RGB-D camera module: a gray sensor and a depth sensor, each behind an ArduCAM-style frame
 //! FIFO, driven through embedded-hal 1.0 traits and read as the core's
-//! [`FrameSource`](ferroslam_core::frame::FrameSource).
+//! [`FrameSource`].
 //!
 //! # Hardware model
 //!
@@ -38,7 +38,7 @@
 //! 4. FIFO link check: write TEST = 0x55, read TEST; anything else is
 //!    [`CameraError::SpiLinkCheck`].
 //!
-//! Each frame ([`FrameSource::next_frame`](ferroslam_core::frame::FrameSource::next_frame)):
+//! Each frame ([`FrameSource::next_frame`]):
 //! 1. arm both FIFOs: CONTROL = 0x01 (clear done), 0x30 (reset pointers), 0x02 (start);
 //! 2. wait for each frame-ready line to read high: poll, then wait
 //!    [`CameraConfig::ready_poll_us`], at most [`CameraConfig::ready_timeout_us`] in all, then
