@@ -138,8 +138,9 @@ fn no_allocator_in(elf: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Frames of 7-Scenes the CI's firmware replay compares.
-const FIRMWARE_REPLAY_FRAMES: usize = 60;
+/// Frames of 7-Scenes the CI's firmware replay compares: all of them (~50 s; the issue asks for
+/// at least 60).
+const FIRMWARE_REPLAY_FRAMES: usize = 1000;
 
 /// The firmware in QEMU on the first frames of 7-Scenes, every pose bit-identical to the host
 /// replay's (see `replay.rs`).

@@ -12,7 +12,9 @@
 //!    flags, inliers and matches.
 //! 5. Prints one line (`bit-identical` with the frame count, or the first differing frame and
 //!    field) and writes into DIR: `cost.json` (per-frame SysTick instruction counts), the two
-//!    trajectories, the decoded firmware log.
+//!    trajectories (`firmware_trajectory.txt`, `host_trajectory.txt`), the UART capture
+//!    (`uart.bin`) and the decoded firmware log (`firmware.log`). `frames.fsrs` (~0.9 MB a frame)
+//!    is removed after a bit-identical run and kept when something differs.
 
 use std::fmt::Display;
 use std::fs;
@@ -143,6 +145,8 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     match first_difference(&fw_poses, &host) {
         None => {
+            // ~0.9 MB a frame, and rewritten by every run: kept only when something differs.
+            let _ = fs::remove_file(out.join("frames.fsrs"));
             println!(
                 "firmware-replay: {frames} frames bit-identical to the host replay (timestamp, \
                  t_wc translation and quaternion bits, state, flags, inliers, matches); {summary}; \
