@@ -281,6 +281,29 @@ fn median_max(v: &[u64]) -> (u64, u64) {
     (s.get(s.len() / 2).copied().unwrap_or(0), s.last().copied().unwrap_or(0))
 }
 
+/// Instructions per tick of `c`'s unit (0 for core cycles).
+fn per_tick(c: &CostMessage) -> u64 {
+    match c.unit {
+        ferroslam_core::wire::TickUnit::Instructions { per_tick } => u64::from(per_tick),
+        ferroslam_core::wire::TickUnit::CoreCycle => 0,
+    }
+}
+
+/// One frame's cost as a `cost.json` entry.
+fn cost_entry(c: &CostMessage) -> serde_json::Value {
+    let k = per_tick(c);
+    json!({
+        "frame_index": c.frame_index,
+        "acquire_ticks": c.acquire_ticks,
+        "process_ticks": c.process_ticks,
+        "report_ticks": c.report_ticks,
+        "acquire_instructions": u64::from(c.acquire_ticks) * k,
+        "process_instructions": u64::from(c.process_ticks) * k,
+        "report_instructions": u64::from(c.report_ticks) * k,
+        "total_instructions": c.total_instructions(),
+    })
+}
+
 /// Writes `cost.json` and returns a one-line summary of the cost figures.
 fn write_cost_json(
     out: &Path,
@@ -288,26 +311,7 @@ fn write_cost_json(
     capture: &Capture,
     costs: &[CostMessage],
 ) -> Result<String> {
-    let per_tick = |c: &CostMessage| match c.unit {
-        ferroslam_core::wire::TickUnit::Instructions { per_tick } => u64::from(per_tick),
-        ferroslam_core::wire::TickUnit::CoreCycle => 0,
-    };
-    let per_frame: Vec<_> = costs
-        .iter()
-        .map(|c| {
-            let k = per_tick(c);
-            json!({
-                "frame_index": c.frame_index,
-                "acquire_ticks": c.acquire_ticks,
-                "process_ticks": c.process_ticks,
-                "report_ticks": c.report_ticks,
-                "acquire_instructions": u64::from(c.acquire_ticks) * k,
-                "process_instructions": u64::from(c.process_ticks) * k,
-                "report_instructions": u64::from(c.report_ticks) * k,
-                "total_instructions": c.total_instructions(),
-            })
-        })
-        .collect();
+    let per_frame: Vec<_> = costs.iter().map(cost_entry).collect();
     let process: Vec<u64> =
         costs.iter().map(|c| u64::from(c.process_ticks) * per_tick(c)).collect();
     let total: Vec<u64> = costs.iter().filter_map(CostMessage::total_instructions).collect();
