@@ -68,19 +68,22 @@ impl SensorConfig {
 
 /// The gray camera: an OV7725-class VGA sensor (I2C address 0x21, product id 0x77 0x21 at
 /// registers 0x0A/0x0B, soft reset by COM7 (0x12) = 0x80) set to VGA, luminance only (Y8), one
-/// byte per pixel, 30 frames per second.
+/// byte per pixel, 30 frames per second. The identity and reset follow the OV7725 register map;
+/// the init values are this project's, unverified on hardware.
 pub const GRAY_VGA_Y8: SensorConfig = SensorConfig {
     i2c_address: 0x21,
     chip_id: [(0x0A, 0x77), (0x0B, 0x21)],
     reset: (0x12, 0x80),
     reset_delay_us: 1_000,
     init: &[
-        (0x12, 0x00), // COM7: VGA, YUV output
-        (0x0C, 0x10), // COM3: swap Y/UV order so the FIFO stores luminance (with the Y-only
-        //                     capture of the FIFO bridge: one byte per pixel)
-        (0x11, 0x01), // CLKRC: internal clock = input / 2 (30 fps at a 24 MHz input)
-        (0x13, 0xFF), // COM8: automatic gain, white balance and exposure on
-        (0x0D, 0x41), // COM4: PLL x4
+        // Project configuration, to be checked against the fitted part's datasheet: VGA YUV
+        // output with luminance first (the bridge keeps the Y bytes: one byte per pixel), clock
+        // prescaler for 30 fps, automatic gain/white balance/exposure, PLL.
+        (0x12, 0x00), // COM7
+        (0x0C, 0x10), // COM3
+        (0x11, 0x01), // CLKRC
+        (0x13, 0xFF), // COM8
+        (0x0D, 0x41), // COM4
     ],
     width: 640,
     height: 480,
