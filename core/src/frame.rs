@@ -1,6 +1,9 @@
-//! An RGB-D frame as the core sees it, and the port every frame producer implements.
+//! An RGB-D frame as the core sees it, the port every frame producer implements
+//! ([`FrameSource`]), and the port every consumer of the core's output implements
+//! ([`TelemetrySink`]).
 
 use crate::image::{DepthView, GrayView};
+use crate::wire::Message;
 
 /// One RGB-D frame: gray intensity and depth of the same instant, borrowed from whoever owns the
 /// buffers (a camera driver's DMA buffers, a dataset reader, the synthetic renderer).
@@ -32,4 +35,30 @@ pub trait FrameSource {
     /// The implementation's error when a frame cannot be produced; the source may be able to go on
     /// with the following frame, as its documentation says.
     fn next_frame(&mut self) -> Result<Option<RgbdFrame<'_>>, Self::Error>;
+}
+
+/// A consumer of the pipeline's output: the firmware's serial link (postcard + COBS + CRC over a
+/// UART), a host writer (trajectory files, a capture file), a test recorder.
+///
+/// One required method, in the style of embedded-hal: each implementation has its own error type.
+/// Messages are [`wire`](crate::wire) messages, so every sink sees exactly what the serial link
+/// would carry.
+pub trait TelemetrySink {
+    /// What can go wrong sending a message (a UART error, a full disk).
+    type Error: core::fmt::Debug;
+
+    /// Sends one message, whole or not at all as far as the sink can tell (a link that fails
+    /// mid-frame leaves a partial frame, which the receiver's decoder drops and counts).
+    ///
+    /// # Errors
+    /// The implementation's error; the caller may go on with the next message.
+    fn send(&mut self, message: &Message) -> Result<(), Self::Error>;
+}
+
+impl<T: TelemetrySink + ?Sized> TelemetrySink for &mut T {
+    type Error = T::Error;
+
+    fn send(&mut self, message: &Message) -> Result<(), Self::Error> {
+        (**self).send(message)
+    }
 }

@@ -20,8 +20,11 @@
 //! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
 //!   segmented global bundle adjustment, in bounded steps.
 //! - [`system`]: the facade, `Slam::process(frame)` and `Slam::step_backend(work_quota)`.
-//! - [`frame`]: an RGB-D frame as the core sees it, and the [`frame::FrameSource`] port that cameras,
-//!   recorded datasets and the synthetic renderer implement.
+//! - [`frame`]: an RGB-D frame as the core sees it, the [`frame::FrameSource`] port that cameras,
+//!   recorded datasets and the synthetic renderer implement, and the [`frame::TelemetrySink`] port
+//!   that the firmware's serial link and the host's writers implement.
+//! - [`wire`]: the versioned serial message schema (pose, status, cost, fault) shared by firmware
+//!   and host: postcard bodies, CRC-32, COBS framing, and a stream decoder that resynchronizes.
 //!
 //! Rules: no heap (every capacity is in a type), no `unsafe`, no panics on bad input (errors are
 //! values), f32 arithmetic with transcendental functions through the pure-Rust `libm` on every target
@@ -41,3 +44,4 @@ pub mod matching;
 pub mod optim;
 pub mod system;
 pub mod tracking;
+pub mod wire;

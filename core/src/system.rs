@@ -16,6 +16,11 @@ use crate::geometry::PinholeCamera;
 use crate::map::BoardMap;
 use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams};
 
+/// Back-end work units per frame in deterministic replay and on the board: at about 400 host
+/// instructions a unit (see [`crate::optim`]), 5,000 units keep every back-end step under the
+/// 4 M-instruction bar.
+pub const DEFAULT_BACKEND_QUOTA: u32 = 5_000;
+
 /// SLAM at the reference board's QVGA profile (320 x 240).
 pub type QvgaSlam = Slam<320, 240>;
 /// SLAM at the VGA profile (640 x 480).
@@ -23,7 +28,8 @@ pub type VgaSlam = Slam<640, 480>;
 
 /// The front end's parameters in SLAM mode: [`FrontendParams::DEFAULT`] without depth fusion
 /// (bundle adjustment refines landmark positions instead).
-pub const SLAM_FRONTEND: FrontendParams = FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
+pub const SLAM_FRONTEND: FrontendParams =
+    FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 
 /// The front end, the map and the back end (see the module documentation).
 #[derive(Debug)]
@@ -66,10 +72,9 @@ impl<const W: usize, const H: usize> Slam<W, H> {
         cam: &PinholeCamera,
     ) -> Result<FrameResult, FrontendError> {
         let result = self.frontend.process(frame, cam, &mut self.map)?;
-        if let Some(kf) = result.keyframe {
-            if let Some(k) = self.map.keyframe(kf) {
-                self.backend.keyframe_added(kf, k.seq);
-            }
+        if let Some((kf, k)) = result.keyframe.and_then(|kf| self.map.keyframe(kf).map(|k| (kf, k)))
+        {
+            self.backend.keyframe_added(kf, k.seq);
         }
         Ok(result)
     }

@@ -10,6 +10,7 @@
 //! - [`trajectory`]: TUM trajectory files;
 //! - [`eval`]: ATE and RPE as evo computes them;
 //! - [`plot`]: trajectory and error plots;
+//! - [`serial`]: the firmware's UART captures decoded, and host writers of the telemetry port;
 //! - [`commands`]: the CLI's subcommands.
 
 pub mod commands;
@@ -17,5 +18,6 @@ pub mod dataset;
 pub mod eval;
 pub mod frame;
 pub mod plot;
+pub mod serial;
 pub mod synth;
 pub mod trajectory;

@@ -1,4 +1,5 @@
-//! `--mode odometry` end to end: the synthetic demo (known poses) and a few real 7-Scenes frames.
+//! `--mode slam` (the default) and `--mode odometry` end to end: the synthetic demo (known poses)
+//! and a few real 7-Scenes frames.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -23,10 +24,12 @@ fn demo_odometry_tracks_the_synthetic_sequence_deterministically() {
     for dir in [&a, &b] {
         let run = sim(&["demo", "--frames", "20", "--out", dir.path().to_str().unwrap()]);
         assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-        assert!(String::from_utf8_lossy(&run.stdout).contains("odometry"));
+        assert!(String::from_utf8_lossy(&run.stdout).contains("slam"));
     }
     let r = report(a.path());
-    assert_eq!(r["mode"], "odometry");
+    assert_eq!(r["mode"], "slam");
+    assert!(r["backend"]["local_runs"].as_u64().unwrap() >= 1, "{}", r["backend"]);
+    assert!(r["ate_online_rmse_m"].as_f64().unwrap() < 0.01);
     assert_eq!(r["frames"], 20);
     assert_eq!(r["tracked_frames"], 20);
     assert_eq!(r["lost_frames"], 0);

@@ -2,10 +2,11 @@
 //! check CI runs (the README's test command).
 //!
 //! Subcommands:
-//! - `ci`: formatting, clippy (host and thumb), docs, host tests, the no-allocator thumb build of core
-//!   and firmware, the QEMU run of the firmware checked bit for bit against the host, and replays of
-//!   the real and synthetic data through the host simulator.
-//! - `firmware-wi [DATASET]`: only the QEMU check (frame 0 of DATASET, default 7-Scenes).
+//! - `ci`: formatting, clippy (host and thumb), docs, host tests, the no-allocator thumb build of
+//!   core and firmware (both binaries), the firmware in QEMU checked pose by pose against the host
+//!   replay, and replays of the real and synthetic data through the host simulator.
+//! - `firmware-replay DATASET [--max-frames N] [--out DIR]`: only the QEMU comparison (default 60
+//!   frames, `target/xtask/firmware-replay`); see `replay.rs`.
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
@@ -13,6 +14,7 @@
 mod bench;
 mod ci;
 mod firmware;
+mod replay;
 
 use std::process::ExitCode;
 
@@ -20,12 +22,15 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("ci") => ci::run_all(),
-        Some("firmware-wi") => ci::firmware_wi(args.get(1).map(String::as_str)),
+        Some("firmware-replay") => {
+            let out = ci::root().join("target").join("xtask").join("firmware-replay");
+            replay::ReplayOptions::parse(&args[1..], out).and_then(|o| replay::run(&ci::root(), &o))
+        }
         Some("bench-frontend") => bench::run(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | firmware-wi [DATASET] | bench-frontend [--dataset DIR] \
-                 [--frames N] [--json FILE] [--max-median INSN]>"
+                "usage: cargo xtask <ci | firmware-replay DATASET [--max-frames N] [--out DIR] | \
+                 bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]>"
             );
             return ExitCode::from(2);
         }

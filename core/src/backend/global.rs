@@ -72,7 +72,10 @@ impl Backend {
                 let slot = o.landmark.0.index();
                 match self.scratch.first_segment.get(slot).copied() {
                     // At most BA_CAMERAS (< 65,535) segments.
-                    Some(0) => self.scratch.first_segment[slot & (capacity::MAX_LANDMARKS - 1)] = r as u16 + 1,
+                    Some(0) => {
+                        self.scratch.first_segment[slot & (capacity::MAX_LANDMARKS - 1)] =
+                            r as u16 + 1
+                    }
                     Some(first) if usize::from(first) != r + 1 => self.mark_joint(slot),
                     _ => {}
                 }
@@ -116,7 +119,10 @@ impl Backend {
 
     /// Writes a finished global BA back: keyframe poses, joint landmarks, and every other
     /// landmark moved with its segment.
-    pub(super) fn write_back_global<const K: usize, const L: usize>(&mut self, map: &mut Map<K, L>) {
+    pub(super) fn write_back_global<const K: usize, const L: usize>(
+        &mut self,
+        map: &mut Map<K, L>,
+    ) {
         for &(kf, cam, free) in &self.cameras {
             let (true, Some(t_cw)) = (free, self.ba.camera_pose(cam)) else { continue };
             if let Some(k) = map.keyframe_mut(kf) {
@@ -126,9 +132,10 @@ impl Backend {
         // Each segment's correction, old world to new world: `T_s'^-1 T_s`.
         let mut delta: Vec<Pose, BA_CAMERAS> = Vec::new();
         for (r, t_sw) in self.rig_before.iter().enumerate() {
-            let rig = self.cameras.iter().find_map(|&(_, cam, _)| {
-                self.ba.camera_rig(cam).filter(|rig| rig.index() == r)
-            });
+            let rig = self
+                .cameras
+                .iter()
+                .find_map(|&(_, cam, _)| self.ba.camera_rig(cam).filter(|rig| rig.index() == r));
             let moved = rig.and_then(|rig| self.ba.rig_pose(rig)).unwrap_or(*t_sw);
             let _ = delta.push(moved.inverse() * t_sw);
         }
@@ -137,7 +144,9 @@ impl Backend {
                 continue;
             }
             let seg = self.scratch.first_segment.get(i).copied().unwrap_or(0);
-            let Some(d) = seg.checked_sub(1).and_then(|r| delta.get(usize::from(r))) else { continue };
+            let Some(d) = seg.checked_sub(1).and_then(|r| delta.get(usize::from(r))) else {
+                continue;
+            };
             if let Some(lm) = map.landmark_at_mut(i) {
                 lm.p_w = d * lm.p_w;
             }

@@ -124,15 +124,20 @@ impl Backend {
                 let shared = k
                     .observations
                     .iter()
-                    .filter(|o| map.landmark(o.landmark).is_some() && self.scratch.is_marked(o.landmark.0.index()))
+                    .filter(|o| {
+                        map.landmark(o.landmark).is_some()
+                            && self.scratch.is_marked(o.landmark.0.index())
+                    })
                     .count();
                 scanned += k.observations.len() as u64;
                 let shared = u16::try_from(shared).unwrap_or(u16::MAX);
-                if shared >= self.params.min_shared_landmarks && ranked.push((shared, k.seq, id)).is_err() {
+                if shared >= self.params.min_shared_landmarks
+                    && ranked.push((shared, k.seq, id)).is_err()
+                {
                     break;
                 }
             }
-            ranked.sort_unstable_by(|a, b| (b.0, b.1).cmp(&(a.0, a.1)));
+            ranked.sort_unstable_by_key(|r| core::cmp::Reverse((r.0, r.1)));
             for &(_, _, id) in &ranked {
                 if window.len() >= self.params.window_max || window.push(id).is_err() {
                     break;
@@ -163,7 +168,11 @@ impl Backend {
     }
 
     /// Marks the landmarks keyframe `id` observes; returns the observations scanned.
-    fn mark_landmarks<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, id: KeyFrameId) -> u64 {
+    fn mark_landmarks<const K: usize, const L: usize>(
+        &mut self,
+        map: &Map<K, L>,
+        id: KeyFrameId,
+    ) -> u64 {
         let Some(k) = map.keyframe(id) else { return 0 };
         for o in &k.observations {
             if map.landmark(o.landmark).is_some() {
@@ -216,14 +225,15 @@ impl Backend {
             }
             *scanned += k.observations.len() as u64;
             let seen = k.observations.iter().filter(|o| {
-                map.landmark(o.landmark).is_some() && self.scratch.point(o.landmark.0.index()).is_some()
+                map.landmark(o.landmark).is_some()
+                    && self.scratch.point(o.landmark.0.index()).is_some()
             });
             let n = u16::try_from(seen.count()).unwrap_or(u16::MAX);
             if n > 0 && ranked.push((n, k.seq, id)).is_err() {
                 break;
             }
         }
-        ranked.sort_unstable_by(|a, b| (b.0, b.1).cmp(&(a.0, a.1)));
+        ranked.sort_unstable_by_key(|r| core::cmp::Reverse((r.0, r.1)));
         let mut fixed = Vec::new();
         for &(_, _, id) in &ranked {
             if window.len() + fixed.len() >= BA_RIGS || fixed.push(id).is_err() {
@@ -249,10 +259,9 @@ impl Backend {
                 if map.landmark(o.landmark).is_none() {
                     continue;
                 }
-                if let Some(p) = self.scratch.point(o.landmark.0.index()) {
-                    if let Some(c) = self.scratch.count.get_mut(p) {
-                        *c = c.saturating_add(1);
-                    }
+                let p = self.scratch.point(o.landmark.0.index());
+                if let Some(c) = p.and_then(|p| self.scratch.count.get_mut(p)) {
+                    *c = c.saturating_add(1);
                 }
             }
         }
@@ -260,7 +269,10 @@ impl Backend {
         let mut kept = 0usize;
         let mut total = 0usize;
         for i in 0..self.points.len() {
-            let (Some(&(id, _, free)), Some(&n)) = (self.points.get(i), self.scratch.count.get(i)) else { break };
+            let (Some(&(id, _, free)), Some(&n)) = (self.points.get(i), self.scratch.count.get(i))
+            else {
+                break;
+            };
             let slot = id.0.index();
             let keep = n >= 2 && total + usize::from(n) <= BA_OBSERVATIONS;
             if let Some(p) = self.scratch.point_of.get_mut(slot) {
@@ -269,7 +281,9 @@ impl Backend {
             }
             if keep {
                 total += usize::from(n);
-                if let (Some(dst), Some(c)) = (self.points.get_mut(kept), self.scratch.count.get_mut(kept)) {
+                if let (Some(dst), Some(c)) =
+                    (self.points.get_mut(kept), self.scratch.count.get_mut(kept))
+                {
                     *dst = (id, None, free);
                     *c = n;
                 }
@@ -289,16 +303,26 @@ impl Backend {
         fixed: &[KeyFrameId],
     ) -> Result<(), BaError> {
         let gauge = if fixed.is_empty() {
-            window.iter().filter_map(|&id| map.keyframe(id).map(|k| (k.seq, id))).min().map(|(_, id)| id)
+            window
+                .iter()
+                .filter_map(|&id| map.keyframe(id).map(|k| (k.seq, id)))
+                .min()
+                .map(|(_, id)| id)
         } else {
             None
         };
-        let all = window.iter().map(|&id| (id, Some(id) != gauge)).chain(fixed.iter().map(|&id| (id, false)));
+        let all = window
+            .iter()
+            .map(|&id| (id, Some(id) != gauge))
+            .chain(fixed.iter().map(|&id| (id, false)));
         for (id, free) in all {
             let Some(k) = map.keyframe(id) else { continue };
             let cam = self.ba.add_keyframe(&k.t_wc.inverse(), !free)?;
             if self.cameras.push((id, cam, free)).is_err() {
-                return Err(BaError::Full { kind: VariableKind::Camera, capacity: super::BA_CAMERAS });
+                return Err(BaError::Full {
+                    kind: VariableKind::Camera,
+                    capacity: super::BA_CAMERAS,
+                });
             }
             // At most BA_CAMERAS (< 65,535) cameras.
             self.scratch.set_role(id, self.cameras.len() as u16);
@@ -307,9 +331,15 @@ impl Backend {
     }
 
     /// Adds the points with their counted observation slots (fill cursors reset to 0).
-    pub(super) fn add_points<const K: usize, const L: usize>(&mut self, map: &Map<K, L>) -> Result<(), BaError> {
+    pub(super) fn add_points<const K: usize, const L: usize>(
+        &mut self,
+        map: &Map<K, L>,
+    ) -> Result<(), BaError> {
         for i in 0..self.points.len() {
-            let (Some(entry), Some(n)) = (self.points.get_mut(i), self.scratch.count.get_mut(i)) else { break };
+            let (Some(entry), Some(n)) = (self.points.get_mut(i), self.scratch.count.get_mut(i))
+            else {
+                break;
+            };
             let p_w = map.landmark(entry.0).map_or(nalgebra::Point3::origin(), |l| l.p_w);
             entry.1 = Some(self.ba.add_point_with_slots(&p_w, !entry.2, usize::from(*n))?);
             *n = 0;
@@ -318,7 +348,10 @@ impl Backend {
     }
 
     /// Sets every observation slot from the cameras' keyframes; returns observations scanned.
-    pub(super) fn fill_observations<const K: usize, const L: usize>(&mut self, map: &Map<K, L>) -> Result<u64, BaError> {
+    pub(super) fn fill_observations<const K: usize, const L: usize>(
+        &mut self,
+        map: &Map<K, L>,
+    ) -> Result<u64, BaError> {
         let mut scanned = 0u64;
         for c in 0..self.cameras.len() {
             let Some(&(kf, cam, _)) = self.cameras.get(c) else { break };
@@ -329,11 +362,19 @@ impl Backend {
                     continue;
                 }
                 let Some(p) = self.scratch.point(o.landmark.0.index()) else { continue };
-                let (Some(&(_, Some(pid), _)), Some(cursor)) = (self.points.get(p), self.scratch.count.get_mut(p)) else {
+                let (Some(&(_, Some(pid), _)), Some(cursor)) =
+                    (self.points.get(p), self.scratch.count.get_mut(p))
+                else {
                     continue;
                 };
                 let (u, v) = o.uv();
-                self.ba.set_observation(pid, usize::from(*cursor), cam, nalgebra::Point2::new(u, v), o.depth_m())?;
+                self.ba.set_observation(
+                    pid,
+                    usize::from(*cursor),
+                    cam,
+                    nalgebra::Point2::new(u, v),
+                    o.depth_m(),
+                )?;
                 *cursor += 1;
             }
         }

@@ -46,8 +46,10 @@ use crate::optim::{
 
 /// Rigs of the back end's adjuster: the local window plus fixed neighbours.
 pub const BA_RIGS: usize = capacity::LOCAL_WINDOW_MAX + 31;
-/// Cameras of the back end's adjuster: every keyframe of the map in a global BA.
-pub const BA_CAMERAS: usize = 256;
+/// Cameras of the back end's adjuster: every keyframe of the map in a global BA, and at least
+/// the rigs of a local BA.
+pub const BA_CAMERAS: usize =
+    if capacity::MAX_KEYFRAMES > BA_RIGS { capacity::MAX_KEYFRAMES } else { BA_RIGS };
 /// Points of the back end's adjuster.
 pub const BA_POINTS: usize = 1536;
 /// Observations of the back end's adjuster.
@@ -345,13 +347,18 @@ impl Backend {
 
     /// Counts one optimization of a free landmark, making it a reference landmark at the
     /// threshold.
-    fn count_optimization<const K: usize, const L: usize>(&mut self, map: &mut Map<K, L>, id: LandmarkId) {
+    fn count_optimization<const K: usize, const L: usize>(
+        &mut self,
+        map: &mut Map<K, L>,
+        id: LandmarkId,
+    ) {
         let threshold = self.params.reference_after;
         let Some(lm) = map.landmark_mut(id) else { return };
         lm.times_optimized = lm.times_optimized.saturating_add(1);
         if !lm.reference && lm.times_optimized >= threshold {
             lm.reference = true;
-            self.stats.reference_landmarks_made = self.stats.reference_landmarks_made.saturating_add(1);
+            self.stats.reference_landmarks_made =
+                self.stats.reference_landmarks_made.saturating_add(1);
         }
     }
 }

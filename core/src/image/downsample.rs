@@ -16,7 +16,8 @@ fn check_half_size(src: (usize, usize), dst: (usize, usize)) -> Result<(), Image
 }
 
 /// Calls `block` on every 2x2 block of `src` (as `[[top-left, top-right], [bottom-left,
-/// bottom-right]]`) and stores its result in the matching pixel of `dst`.
+/// bottom-right]]`) and stores its result in the matching pixel of `dst`: one [`row_pair`] per
+/// output row, so the streaming functions below compute exactly what the whole-frame ones do.
 ///
 /// The caller has checked the sizes; rows are walked with iterators, so no pixel access can panic.
 fn for_each_block<P: Copy>(
@@ -29,11 +30,70 @@ fn for_each_block<P: Copy>(
         let (Some(top), Some(bottom)) = (src_rows.next(), src_rows.next()) else {
             return;
         };
-        let pairs = top.as_chunks::<2>().0.iter().zip(bottom.as_chunks::<2>().0);
-        for (o, (&t, &b)) in out.iter_mut().zip(pairs) {
-            *o = block([t, b]);
-        }
+        row_pair(top, bottom, out, &block);
     }
+}
+
+/// One output row from two source rows: `out[x] = block` of columns `2x, 2x + 1` (a last odd
+/// column is dropped; `out` may be shorter than half the rows, then only its pixels are written).
+fn row_pair<P: Copy>(top: &[P], bottom: &[P], out: &mut [P], block: impl Fn([[P; 2]; 2]) -> P) {
+    let pairs = top.as_chunks::<2>().0.iter().zip(bottom.as_chunks::<2>().0);
+    for (o, (&t, &b)) in out.iter_mut().zip(pairs) {
+        *o = block([t, b]);
+    }
+}
+
+/// Checks the row lengths of a streamed row pair: both source rows equally long, `out` exactly
+/// half as long (rounded down).
+fn check_row_pair(top: usize, bottom: usize, out: usize) -> Result<(), ImageError> {
+    if bottom != top {
+        return Err(ImageError::SizeMismatch { expected: (top, 1), got: (bottom, 1) });
+    }
+    check_half_size((top, 2), (out, 1))?;
+    if out == 0 {
+        return Err(ImageError::ZeroSize);
+    }
+    Ok(())
+}
+
+/// [`downsample_gray_2x`] on a stream: one output row from source rows `2y` (`top`) and `2y + 1`
+/// (`bottom`), so a sensor frame can be halved while it arrives, two rows at a time, without ever
+/// being held whole. Streaming every row pair of an image gives exactly the output of
+/// [`downsample_gray_2x`] (the two share the block rule and are tested against each other).
+///
+/// # Errors
+/// [`ImageError::SizeMismatch`] unless `top` and `bottom` have one length and `out` half of it
+/// (rounded down); [`ImageError::ZeroSize`] for rows shorter than 2 pixels.
+pub fn downsample_gray_row_pair(
+    top: &[u8],
+    bottom: &[u8],
+    out: &mut [u8],
+) -> Result<(), ImageError> {
+    check_row_pair(top.len(), bottom.len(), out.len())?;
+    row_pair(top, bottom, out, gray_block);
+    Ok(())
+}
+
+/// [`downsample_depth_2x`] on a stream, as [`downsample_gray_row_pair`] is to
+/// [`downsample_gray_2x`]: the same per-block rule, exactly the whole-frame output.
+///
+/// # Errors
+/// As [`downsample_gray_row_pair`].
+pub fn downsample_depth_row_pair(
+    top: &[u16],
+    bottom: &[u16],
+    out: &mut [u16],
+) -> Result<(), ImageError> {
+    check_row_pair(top.len(), bottom.len(), out.len())?;
+    row_pair(top, bottom, out, depth_block);
+    Ok(())
+}
+
+/// The gray of one 2x2 block: the rounded mean (see [`downsample_gray_2x`]).
+fn gray_block([[a, b], [c, d]]: [[u8; 2]; 2]) -> u8 {
+    let sum = u16::from(a) + u16::from(b) + u16::from(c) + u16::from(d) + 2;
+    // sum <= 4 * 255 + 2, so sum / 4 <= 255: the conversion never saturates.
+    u8::try_from(sum / 4).unwrap_or(u8::MAX)
 }
 
 /// Halves a gray image: each output pixel is the mean of its 2x2 source block, rounded half up,
@@ -44,11 +104,7 @@ fn for_each_block<P: Copy>(
 /// source one pixel wide or high therefore always fails, since views are never empty.
 pub fn downsample_gray_2x(src: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Result<(), ImageError> {
     check_half_size(src.size(), dst.size())?;
-    for_each_block(src, dst, |[[a, b], [c, d]]| {
-        let sum = u16::from(a) + u16::from(b) + u16::from(c) + u16::from(d) + 2;
-        // sum <= 4 * 255 + 2, so sum / 4 <= 255: the conversion never saturates.
-        u8::try_from(sum / 4).unwrap_or(u8::MAX)
-    });
+    for_each_block(src, dst, gray_block);
     Ok(())
 }
 
@@ -230,6 +286,66 @@ mod tests {
             }
             assert_eq!(two_smallest(perm), (1, 2), "{perm:?}");
         }
+    }
+
+    /// A deterministic pseudo-random sequence (xorshift32) for test images.
+    fn noise(seed: u32) -> impl FnMut() -> u32 {
+        let mut x = seed.max(1);
+        move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x
+        }
+    }
+
+    #[test]
+    fn streaming_row_pairs_gives_exactly_the_whole_frame_output() {
+        extern crate std;
+        use std::vec::Vec;
+        // Even and odd sizes, with stride padding, gray of every level and depth with holes and
+        // the extreme raw values.
+        for (w, h, seed) in [(640, 480, 1), (7, 5, 2), (2, 2, 3), (33, 8, 4), (320, 3, 5)] {
+            let stride = w + 3;
+            let mut next = noise(seed);
+            let gray: Vec<u8> = (0..stride * h).map(|_| next() as u8).collect();
+            let depth: Vec<u16> = (0..stride * h)
+                .map(|_| match next() % 8 {
+                    0 | 1 => 0,
+                    2 => u16::MAX,
+                    _ => next() as u16,
+                })
+                .collect();
+            let (ow, oh) = (w / 2, h / 2);
+            let g = GrayView::new(&gray, w, h, stride).unwrap();
+            let d = ImageView::new(&depth, w, h, stride).unwrap();
+            let mut whole_g = std::vec![0u8; ow * oh];
+            let mut whole_d = std::vec![0u16; ow * oh];
+            downsample_gray_2x(&g, &mut GrayViewMut::packed(&mut whole_g, ow, oh).unwrap())
+                .unwrap();
+            downsample_depth_2x(&d, &mut ImageViewMut::packed(&mut whole_d, ow, oh).unwrap())
+                .unwrap();
+            let mut streamed_g = std::vec![0u8; ow * oh];
+            let mut streamed_d = std::vec![0u16; ow * oh];
+            for y in 0..oh {
+                let out = y * ow..(y + 1) * ow;
+                let (top, bottom) = (g.row(2 * y).unwrap(), g.row(2 * y + 1).unwrap());
+                downsample_gray_row_pair(top, bottom, &mut streamed_g[out.clone()]).unwrap();
+                let (top, bottom) = (d.row(2 * y).unwrap(), d.row(2 * y + 1).unwrap());
+                downsample_depth_row_pair(top, bottom, &mut streamed_d[out]).unwrap();
+            }
+            assert_eq!(streamed_g, whole_g, "{w}x{h}");
+            assert_eq!(streamed_d, whole_d, "{w}x{h}");
+        }
+    }
+
+    #[test]
+    fn row_pairs_of_the_wrong_length_are_errors() {
+        let mut out = [0u8; 2];
+        assert!(downsample_gray_row_pair(&[0; 4], &[0; 5], &mut out).is_err());
+        assert!(downsample_gray_row_pair(&[0; 6], &[0; 6], &mut out).is_err());
+        assert!(downsample_gray_row_pair(&[0; 5], &[0; 5], &mut out).is_ok(), "odd column dropped");
+        assert!(downsample_depth_row_pair(&[0; 1], &[0; 1], &mut [0; 0]).is_err());
     }
 
     #[test]

@@ -105,10 +105,10 @@
 //! | type | capacities (rigs, cameras, points, observations) | bytes |
 //! | --- | --- | --- |
 //! | [`LocalBundleAdjuster`] | 65, 65, 1536, 8192 | 124,320 |
-//! | [`SegmentedBundleAdjuster`] | 64, 256, 1536, 8192 | 173,304 |
+//! | [`SegmentedBundleAdjuster`] | 20, 80, 1536, 8192 (`MAX_SEGMENTS`, `MAX_KEYFRAMES`) | 115,312 |
 //!
-//! Local and segmented BA never run at the same time, so one `BundleAdjuster<65, 256, 1536,
-//! 8192>` (173,590 bytes) can serve both when RAM is tighter than code clarity.
+//! Local and segmented BA never run at the same time, so one adjuster can serve both when RAM
+//! is tighter than code clarity: the back end does this (`backend::BoardBundleAdjuster`).
 //!
 //! # Determinism
 //!

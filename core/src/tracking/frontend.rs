@@ -127,6 +127,14 @@ pub enum GuideStage {
     None,
 }
 
+impl GuideStage {
+    /// Whether a recovery path gave the pose: the small-image rotation, the wide search or the
+    /// affine bank.
+    pub fn is_recovery(self) -> bool {
+        matches!(self, Self::SmallImageRotation | Self::WideSearch | Self::AffineBank)
+    }
+}
+
 /// Why a frame could not be processed at all (bad input; a hard frame is [`FrontendState::Lost`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -326,7 +334,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.previous_t_cw = Some(result.t_wc.inverse());
         self.previous_inliers = result.inliers;
         core::mem::swap(&mut self.small_current, &mut self.small_previous);
-        let keyframe_landmarks = if result.keyframe.is_some() { self.last_keyframe_counts } else { (0, 0) };
+        let keyframe_landmarks =
+            if result.keyframe.is_some() { self.last_keyframe_counts } else { (0, 0) };
         Ok(FrameResult { tracked_landmarks: self.local.len(), keyframe_landmarks, ..result })
     }
 

@@ -12,7 +12,7 @@ use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::image::{ImageError, total_variation};
 use ferroslam_core::map::BoardMap;
-use ferroslam_core::tracking::{Frontend, FrontendState, GuideStage};
+use ferroslam_core::tracking::{FrameResult, Frontend, FrontendState, GuideStage};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -187,18 +187,65 @@ pub struct OdometryFrame {
     pub matches: usize,
     /// Guide landmarks matched from the motion-model prediction.
     pub guide_matches: usize,
-    /// Whether the guides gave no pose and the affine bank was searched.
-    pub bank_recovery: bool,
+    /// Which attempt gave the final stage's start pose: `"motion-model"`, `"small-image"`,
+    /// `"wide-search"`, `"affine-bank"` or `"none"`.
+    pub guide_stage: &'static str,
+    /// Whether a recovery path (small image, wide search, bank) gave it.
+    pub recovery: bool,
+    /// Whether tracking restarted at this frame after a loss.
+    pub reinitialized: bool,
 }
 
-/// The odometry front end's result over a whole source.
+/// What the back end did over a run (SLAM mode).
+#[derive(Debug, Clone, Serialize)]
+pub struct BackendReport {
+    /// Work units the back end may spend per frame (deterministic replay).
+    pub work_quota_per_frame: u32,
+    /// Local bundle adjustments finished.
+    pub local_runs: u32,
+    /// Segmented global bundle adjustments finished.
+    pub global_runs: u32,
+    /// Local windows by size: `[free keyframes, count]` pairs.
+    pub window_sizes: Vec<[u32; 2]>,
+    /// Mean local window size, keyframes.
+    pub window_mean: f64,
+    /// Keyframes in the map at the end.
+    pub map_keyframes: usize,
+    /// Landmarks in the map at the end.
+    pub map_landmarks: usize,
+    /// Reference landmarks in the map at the end (fixed in bundle adjustment).
+    pub reference_landmarks: usize,
+    /// Over all local adjustments: the fraction of point variables that reference landmarks
+    /// removed (fixed points over all points).
+    pub reference_fraction_of_points: f64,
+    /// Work units spent, problem building included.
+    pub work_units: u64,
+}
+
+/// What to run on each frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrackMode {
+    /// The front end alone (depth fused into landmarks, no bundle adjustment).
+    Odometry,
+    /// Front end, map and back end, with `quota` back-end work units after every frame.
+    Slam {
+        /// Back-end work units per frame.
+        quota: u32,
+    },
+}
+
+/// The tracker's result over a whole source.
 #[derive(Debug, Clone)]
 pub struct OdometryRun {
-    /// The data path's figures (processing time includes the front end).
+    /// The data path's figures (processing time includes the front end and the back end).
     pub data: DataPathRun,
-    /// Camera-to-world pose of every frame (tracked or predicted).
+    /// The trajectory written to CameraTrajectory.txt: in odometry mode each frame's pose as
+    /// tracked; in SLAM mode each frame's pose relative to its reference keyframe, composed with
+    /// that keyframe's final (bundle-adjusted) pose.
     pub camera: Trajectory,
-    /// Camera-to-world pose of every keyframe, when it was made.
+    /// Each frame's pose as the front end output it at that frame (what the firmware sends).
+    pub online: Trajectory,
+    /// Camera-to-world pose of every keyframe (SLAM: final; odometry: when it was made).
     pub keyframes: Trajectory,
     /// Per-frame front-end figures.
     pub per_frame: Vec<OdometryFrame>,
@@ -206,30 +253,64 @@ pub struct OdometryRun {
     pub tracked_frames: usize,
     /// Frames in the lost state.
     pub lost_frames: usize,
-    /// Bytes of the core's state (`size_of` of the `Frontend` and the map).
+    /// Bytes of the core's state.
     pub state_bytes: usize,
+    /// The back end's figures (SLAM mode).
+    pub backend: Option<BackendReport>,
 }
 
-/// Runs every frame of `source` through the core's odometry front end, sized for `profile`
-/// (QVGA: `Frontend<320, 240>`; VGA: `Frontend<640, 480>`), with the camera `cam` at the
-/// processing resolution.
+/// Runs every frame of `source` through the core, sized for `profile` (QVGA: 320 x 240; VGA:
+/// 640 x 480), with the camera `cam` at the processing resolution.
 ///
 /// # Errors
-/// As [`run_with`]; a frame the front end rejects (size or timestamp).
+/// As [`run_with`]; a frame the front end rejects (size or timestamp); a back-end error.
 pub fn run_odometry<S>(
     source: &mut S,
     expected: usize,
     cam: &PinholeCamera,
     profile: Profile,
+    mode: TrackMode,
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    if profile.downsample_levels == 0 {
-        odometry_with::<640, 480, S>(source, expected, cam)
-    } else {
-        odometry_with::<320, 240, S>(source, expected, cam)
+    match (mode, profile.downsample_levels == 0) {
+        (TrackMode::Odometry, true) => odometry_with::<640, 480, S>(source, expected, cam),
+        (TrackMode::Odometry, false) => odometry_with::<320, 240, S>(source, expected, cam),
+        (TrackMode::Slam { quota }, true) => {
+            super::slam::run::<640, 480, S>(source, expected, cam, quota)
+        }
+        (TrackMode::Slam { quota }, false) => {
+            super::slam::run::<320, 240, S>(source, expected, cam, quota)
+        }
+    }
+}
+
+/// The per-frame figures of a front-end result.
+pub(crate) fn frame_figures(timestamp_s: f64, r: &FrameResult) -> OdometryFrame {
+    let state = match r.state {
+        FrontendState::Initializing => "initializing",
+        FrontendState::Tracking => "tracking",
+        FrontendState::Lost => "lost",
+    };
+    OdometryFrame {
+        timestamp_s,
+        state,
+        tracked: r.tracked,
+        keyframe: r.keyframe.is_some(),
+        inliers: r.inliers,
+        matches: r.matches,
+        guide_matches: r.guide_matches,
+        guide_stage: match r.guide_stage {
+            GuideStage::MotionModel => "motion-model",
+            GuideStage::SmallImageRotation => "small-image",
+            GuideStage::WideSearch => "wide-search",
+            GuideStage::AffineBank => "affine-bank",
+            _ => "none",
+        },
+        recovery: r.guide_stage.is_recovery(),
+        reinitialized: r.reinitialized,
     }
 }
 
@@ -253,32 +334,21 @@ where
         if r.keyframe.is_some() {
             keyframes.push(pose);
         }
-        let state = match r.state {
-            FrontendState::Initializing => "initializing",
-            FrontendState::Tracking => "tracking",
-            FrontendState::Lost => "lost",
-        };
-        per_frame.push(OdometryFrame {
-            timestamp_s: frame.timestamp_s,
-            state,
-            tracked: r.tracked,
-            keyframe: r.keyframe.is_some(),
-            inliers: r.inliers,
-            matches: r.matches,
-            guide_matches: r.guide_matches,
-            bank_recovery: r.guide_stage == GuideStage::AffineBank,
-        });
+        per_frame.push(frame_figures(frame.timestamp_s, &r));
         Ok(())
     })?;
     let stats = frontend.stats();
+    let camera = Trajectory::new(camera);
     Ok(OdometryRun {
         data,
-        camera: Trajectory::new(camera),
+        online: camera.clone(),
+        camera,
         keyframes: Trajectory::new(keyframes),
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
         state_bytes: std::mem::size_of::<Frontend<W, H>>() + std::mem::size_of::<BoardMap>(),
+        backend: None,
     })
 }
 

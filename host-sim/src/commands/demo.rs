@@ -47,10 +47,14 @@ pub struct DemoArgs {
     /// Seed of the noise, holes and shake.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// What runs on each frame: the odometry front end, or the data path only (which evaluates a
-    /// simulated dead-reckoning baseline instead of an estimate).
-    #[arg(long, value_enum, default_value = "odometry")]
+    /// What runs on each frame: SLAM (front end, map, back end), the odometry front end alone,
+    /// or the data path only (which evaluates a simulated dead-reckoning baseline instead of an
+    /// estimate).
+    #[arg(long, value_enum, default_value = "slam")]
     pub mode: ModeArg,
+    /// Back-end work units after each frame (SLAM mode).
+    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
+    pub backend_quota: u32,
 }
 
 /// Runs `demo`.
@@ -78,7 +82,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let profile = args.profile.profile();
     let frames = sequence.len();
     let started = Instant::now();
-    if args.mode == ModeArg::Odometry {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota) {
         let k = sequence.intrinsics();
         #[allow(clippy::cast_possible_truncation)] // intrinsics are exact in f32
         let sensor = PinholeCamera::new(
@@ -95,12 +99,12 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
         }
         let mut source = ProfileSource::new(sequence.into_source(), profile.downsample_levels);
-        let run = datapath::run_odometry(&mut source, frames, &cam, profile)?;
+        let run = datapath::run_odometry(&mut source, frames, &cam, profile, track_mode)?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = format!(
-            "odometry: {} synthetic frames rendered at 640x480, frame-to-keyframe front end at {} \
-             ({}x{}); no map, no loop closure",
-            run.data.frames, profile.name, run.data.width, run.data.height
+            "{} synthetic frames rendered at 640x480; {}",
+            run.data.frames,
+            super::replay::run_note(args.mode, profile.name, (run.data.width, run.data.height))
         );
         let out_files = write_odometry(out, &run, Some(&gt), profile.name, 0, note)?;
         println!("demo: {}", summary(&out_files.report, wall_s));

@@ -6,14 +6,17 @@
 //! ferroslam-sim replay DATASET --out DIR [--profile qvga|vga] [--mode odometry|data-path]
 //!                      [--preset tum1|tum2|tum3] [--max-frames N]
 //! ferroslam-sim eval GROUNDTRUTH ESTIMATE [--json]     ATE/RPE, evo-compatible
+//! ferroslam-sim decode-serial FILE [--tum]             the firmware's UART capture: poses, losses
 //! ```
 //! Every error is printed with its causes (file and line where there is one) and the process exits
 //! with status 1; usage errors exit with status 2.
 
 pub mod datapath;
+pub mod decode_serial;
 pub mod demo;
 pub mod replay;
 pub mod report;
+pub mod slam;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -39,6 +42,9 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Evaluate an estimated trajectory against ground truth (ATE after SE(3) alignment, RPE).
     Eval(EvalArgs),
+    /// Decode a capture of the firmware's UART: poses, other messages, frames dropped and bytes
+    /// skipped.
+    DecodeSerial(decode_serial::DecodeSerialArgs),
 }
 
 /// Arguments of `eval`.
@@ -80,6 +86,7 @@ pub fn main() -> ExitCode {
         Command::Demo(args) => demo::run(args),
         Command::Replay(args) => replay::run(args),
         Command::Eval(args) => run_eval(args),
+        Command::DecodeSerial(args) => decode_serial::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -39,9 +39,32 @@ impl ProfileArg {
 pub enum ModeArg {
     /// The data path only: decoding, the profile's downsampling and the core's image statistics.
     DataPath,
-    /// The data path, then the core's frame-to-keyframe odometry front end (no map, no back end:
-    /// drift is not corrected). Mapping (`slam`) is later work.
+    /// The data path, then the core's frame-to-map front end alone (depth fused into the
+    /// landmarks; no bundle adjustment).
     Odometry,
+    /// Front end, map and back end (local and segmented global bundle adjustment), the back end
+    /// getting a fixed work quota after every frame (deterministic).
+    Slam,
+}
+
+impl ModeArg {
+    /// The tracker mode, with `quota` back-end units per frame in SLAM mode.
+    pub fn track_mode(self, quota: u32) -> Option<datapath::TrackMode> {
+        match self {
+            Self::DataPath => None,
+            Self::Odometry => Some(datapath::TrackMode::Odometry),
+            Self::Slam => Some(datapath::TrackMode::Slam { quota }),
+        }
+    }
+
+    /// The mode's name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::DataPath => "data-path",
+            Self::Odometry => "odometry",
+            Self::Slam => "slam",
+        }
+    }
 }
 
 /// Arguments of `replay`.
@@ -62,8 +85,11 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub max_frames: Option<usize>,
     /// What runs on each frame.
-    #[arg(long, value_enum, default_value = "odometry")]
+    #[arg(long, value_enum, default_value = "slam")]
     pub mode: ModeArg,
+    /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
+    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
+    pub backend_quota: u32,
 }
 
 /// Runs `replay`.
@@ -83,18 +109,15 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
     let gt = dataset.groundtruth_trajectory().cloned();
-    if args.mode == ModeArg::Odometry {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota) {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
         let mut reader = dataset.into_reader(8);
         let started = Instant::now();
-        let run = datapath::run_odometry(&mut reader, frames, &cam, profile)?;
+        let run = datapath::run_odometry(&mut reader, frames, &cam, profile, track_mode)?;
         let wall_s = started.elapsed().as_secs_f64();
-        let note = format!(
-            "odometry: frame-to-keyframe front end at {} ({}x{}); no map, no loop closure",
-            profile.name, run.data.width, run.data.height
-        );
+        let note = run_note(args.mode, profile.name, (run.data.width, run.data.height));
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
         println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
         return Ok(());
@@ -125,12 +148,29 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     Ok(())
 }
 
+/// The report's note on what a tracking run did.
+pub fn run_note(mode: ModeArg, profile: &str, (width, height): (usize, usize)) -> String {
+    match mode {
+        ModeArg::Slam => format!(
+            "slam: frame-to-map front end, map and back end (local and segmented global bundle \
+             adjustment, fixed work quota per frame) at {profile} ({width}x{height}); \
+             CameraTrajectory.txt composes each frame's pose relative to its reference keyframe \
+             with that keyframe's final pose; no loop closure"
+        ),
+        _ => format!(
+            "odometry: frame-to-map front end at {profile} ({width}x{height}), depth fused into \
+             the landmarks; no bundle adjustment, no loop closure"
+        ),
+    }
+}
+
 /// The one-line summary of an odometry run.
 pub fn summary(report: &Report, wall_s: f64) -> String {
     let ate = report.ate_rmse_m.map_or("n/a (no ground truth)".to_owned(), |a| format!("{a:.4} m"));
     format!(
-        "odometry ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
-         {:.1} s wall ({:.1} ms median per frame in the core); Frontend state {} bytes",
+        "{} ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
+         {:.1} s wall ({:.1} ms median per frame in the core); core state {} bytes",
+        report.mode,
         report.profile,
         report.frames,
         report.tracked_frames,

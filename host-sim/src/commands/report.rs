@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use sha2::Digest;
 
-use super::datapath::{DataPathRun, FrameStats, OdometryFrame, OdometryRun, median};
+use super::datapath::{BackendReport, DataPathRun, FrameStats, OdometryFrame, OdometryRun, median};
 use crate::eval::{self, EvalReport};
 use crate::plot;
 use crate::trajectory::Trajectory;
@@ -28,7 +28,7 @@ pub struct HostCost {
 /// The report of a `replay` or `demo` run.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
-    /// What ran: `"data-path"` or `"odometry"`.
+    /// What ran: `"data-path"`, `"odometry"` or `"slam"`.
     pub mode: &'static str,
     /// Plain words on what this run did and did not do.
     pub note: String,
@@ -64,7 +64,13 @@ pub struct Report {
     pub host_cost: HostCost,
     /// Per-frame figures.
     pub per_frame: Vec<FrameStats>,
-    /// Per-frame front-end figures (odometry mode only).
+    /// ATE RMSE of the poses as output frame by frame (before later bundle adjustment moved
+    /// their keyframes), metres; null without ground truth or in data-path mode.
+    pub ate_online_rmse_m: Option<f64>,
+    /// The back end's figures (SLAM mode).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub backend: Option<BackendReport>,
+    /// Per-frame front-end figures (odometry and SLAM modes).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub odometry: Vec<OdometryFrame>,
 }
@@ -107,6 +113,8 @@ impl Report {
                 source_wait_mean: run.source_wait_s * 1e6 / n,
             },
             per_frame: run.per_frame.clone(),
+            ate_online_rmse_m: None,
+            backend: None,
             odometry: Vec::new(),
         }
     }
@@ -119,10 +127,11 @@ impl Report {
         skipped: usize,
         note: String,
         evaluation: Option<&EvalReport>,
+        online_ate: Option<f64>,
         sha256: String,
     ) -> Self {
         Self {
-            mode: "odometry",
+            mode: if run.backend.is_some() { "slam" } else { "odometry" },
             tracked_frames: run.tracked_frames,
             lost_frames: run.lost_frames,
             keyframes: run.keyframes.len(),
@@ -130,6 +139,8 @@ impl Report {
             rpe_trans_m_per_s: evaluation.and_then(|e| e.rpe_per_second.map(|r| r.trans.rmse)),
             state_bytes: run.state_bytes,
             output_sha256: Some(sha256),
+            ate_online_rmse_m: online_ate,
+            backend: run.backend.clone(),
             odometry: run.per_frame.clone(),
             ..Self::data_path(&run.data, profile, skipped, note)
         }
@@ -185,7 +196,14 @@ pub fn write_odometry(
     if let Some(e) = &evaluation {
         plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
     }
-    let report = Report::odometry(run, profile, skipped, note, evaluation.as_ref(), sha256);
+    let online_ate = match gt.filter(|g| !g.is_empty()) {
+        Some(gt) if !run.online.is_empty() => {
+            Some(eval::evaluate(gt, &run.online, eval::DEFAULT_MAX_DT_S)?.ate.rmse)
+        }
+        _ => None,
+    };
+    let report =
+        Report::odometry(run, profile, skipped, note, evaluation.as_ref(), online_ate, sha256);
     report.write(dir)?;
     Ok(OdometryOutputs { report, evaluation })
 }

@@ -1,191 +1,140 @@
-//! The firmware proper: entry point, frame reading, the W(I) check, and the fault handlers.
+//! The firmware proper: entry point, the replay loop, and the fault handlers.
 
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m as _;
-use cortex_m::peripheral::{SYST, syst::SystClkSource};
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use defmt_semihosting as _;
-use ferroslam_core::image::{GrayView, ImageError, ImageView};
-use ferroslam_firmware::frame_file::{FrameFileError, FrameHeader, HEADER_LEN, decode_depth_le};
-use ferroslam_firmware::semihosting::{HostFile, Mode, SemihostingError, command_line};
-use ferroslam_firmware::wi::{self, WiReport};
+use ferroslam_core::frame::TelemetrySink;
+use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::wire::{FaultCode, FaultMessage, Message, PoseFlags};
+use ferroslam_firmware::cmsdk_uart::CmsdkUart;
+use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
+use ferroslam_firmware::semihost_source::{SemihostFrames, SourceError};
+use ferroslam_firmware::semihosting::{SemihostingError, command_line};
+use ferroslam_firmware::serial::{SerialError, SerialLink};
+use ferroslam_firmware::stack;
+use ferroslam_firmware::stream::HalfFrame;
+use ferroslam_firmware::systick::{SysTickClock, on_systick_wrap};
 
-/// Largest frame the static buffers hold: VGA.
-const MAX_PIXELS: usize = 640 * 480;
-/// Half-resolution buffers: `(w / 2) * (h / 2) <= MAX_PIXELS / 4`.
-const MAX_HALF_PIXELS: usize = MAX_PIXELS / 4;
-/// Frame file read when the command line names none.
-const DEFAULT_FRAME: &str = "frame.fsrf";
-/// Result file written when the command line names none.
-const DEFAULT_RESULT: &str = "wi-result.txt";
-/// Depth bytes read per SYS_READ (on the stack).
-const DEPTH_CHUNK_BYTES: usize = 4096;
+/// Instructions per SysTick tick under QEMU `-icount shift=0` (1 GHz virtual instruction clock,
+/// 25 MHz SysTick).
+const INSTRUCTIONS_PER_TICK: u16 = 40;
 
-/// Why the check failed.
+/// Why the run failed as a whole (a bad frame is a fault message, not a failure).
 #[derive(Debug, defmt::Format)]
 enum Failure {
-    Semihosting(SemihostingError),
-    Frame(FrameFileError),
-    Image(ImageError),
-    FrameTooLarge { width: u32, height: u32 },
-    ResultTooLong,
+    CommandLine(SemihostingError),
+    Usage,
+    Camera,
+    Source(SourceError),
+    Link(SerialError<core::convert::Infallible>),
+    StackOverflow,
 }
 
-impl From<SemihostingError> for Failure {
-    fn from(e: SemihostingError) -> Self {
-        Self::Semihosting(e)
-    }
-}
-impl From<FrameFileError> for Failure {
-    fn from(e: FrameFileError) -> Self {
-        Self::Frame(e)
-    }
-}
-impl From<ImageError> for Failure {
-    fn from(e: ImageError) -> Self {
-        Self::Image(e)
-    }
+/// Camera and input file from the semihosting command line:
+/// `FRAMES fx fy cx cy width height` (intrinsics at the processing resolution, in pixels).
+struct Args<'a> {
+    frames: &'a str,
+    cam: PinholeCamera,
 }
 
-/// The frame and scratch buffers, statics handed out once by `main`.
-struct Buffers {
-    gray: &'static mut [u8; MAX_PIXELS],
-    depth: &'static mut [u16; MAX_PIXELS],
-    half_gray: &'static mut [u8; MAX_HALF_PIXELS],
-    half_depth: &'static mut [u16; MAX_HALF_PIXELS],
+fn parse_args(text: &str) -> Result<Args<'_>, Failure> {
+    fn next<'t, T: core::str::FromStr>(
+        words: &mut impl Iterator<Item = &'t str>,
+    ) -> Result<T, Failure> {
+        words.next().and_then(|w| w.parse().ok()).ok_or(Failure::Usage)
+    }
+    // Word 0 is the program (QEMU passes the kernel path).
+    let mut words = text.split_whitespace().skip(1);
+    let frames = words.next().ok_or(Failure::Usage)?;
+    // Rust's f32 parsing is exact: the host prints each value with `Display`, which round-trips.
+    let (fx, fy, cx, cy) =
+        (next(&mut words)?, next(&mut words)?, next(&mut words)?, next(&mut words)?);
+    let (w, h) = (next(&mut words)?, next(&mut words)?);
+    let cam = PinholeCamera::new(fx, fy, cx, cy, w, h).map_err(|_| Failure::Camera)?;
+    Ok(Args { frames, cam })
 }
 
 #[entry]
 fn main() -> ! {
-    // cortex-m-rt turns these into `&'static mut` references, handed out once, safely; being
-    // zero-initialized they live in .bss, not in the image.
-    static mut GRAY: [u8; MAX_PIXELS] = [0; MAX_PIXELS];
-    static mut DEPTH: [u16; MAX_PIXELS] = [0; MAX_PIXELS];
-    static mut HALF_GRAY: [u8; MAX_HALF_PIXELS] = [0; MAX_HALF_PIXELS];
-    static mut HALF_DEPTH: [u16; MAX_HALF_PIXELS] = [0; MAX_HALF_PIXELS];
-    let buffers =
-        Buffers { gray: GRAY, depth: DEPTH, half_gray: HALF_GRAY, half_depth: HALF_DEPTH };
-
-    defmt::info!("ferroslam qemu-mps2: W(I) check, buffers for up to {} pixels", MAX_PIXELS);
-    let status = match run(buffers) {
+    // cortex-m-rt turns these into `&'static mut` references, handed out once, safely. The frame
+    // store is all zeros (.bss); the pipeline is copied from its `const` image in flash by the
+    // reset handler (.data): neither is ever built on the stack (the pipeline alone is larger
+    // than the stack).
+    static mut STORE: HalfFrame = HalfFrame::new();
+    static mut PIPELINE: Pipeline = Pipeline::new();
+    stack::paint();
+    let (store, pipeline) = (STORE, PIPELINE);
+    defmt::info!(
+        "ferroslam qemu-mps2: statics {} B frame store + {} B pipeline",
+        core::mem::size_of::<HalfFrame>(),
+        core::mem::size_of::<Pipeline>()
+    );
+    let status = match run(store, pipeline) {
         Ok(()) => EXIT_SUCCESS,
         Err(e) => {
-            defmt::error!("W(I) check failed: {}", e);
+            defmt::error!("replay failed: {}", e);
             EXIT_FAILURE
         }
     };
     exit(status)
 }
 
-/// Reads the frame named on the command line, runs the check, writes the result file.
-fn run(buffers: Buffers) -> Result<(), Failure> {
+/// Streams every recorded frame through the pipeline and out of UART0, then sends the status.
+fn run(store: &'static mut HalfFrame, pipeline: &'static mut Pipeline) -> Result<(), Failure> {
     let mut line = [0u8; 512];
-    let (frame_path, result_path) = match command_line(&mut line) {
-        Ok(text) => {
-            // Word 0 is the program (QEMU passes the kernel path); then FRAME and RESULT.
-            let mut words = text.split_whitespace().skip(1);
-            (words.next().unwrap_or(DEFAULT_FRAME), words.next().unwrap_or(DEFAULT_RESULT))
-        }
+    let args = parse_args(command_line(&mut line).map_err(Failure::CommandLine)?)?;
+    defmt::info!("frames: {=str}", args.frames);
+    // SAFETY: this is the only code that touches UART0.
+    let mut link = SerialLink::new(unsafe { CmsdkUart::uart0() });
+    let mut source = match SemihostFrames::open(args.frames, store) {
+        Ok(s) => s,
         Err(e) => {
-            defmt::warn!("no command line ({}), using the default file names", e);
-            (DEFAULT_FRAME, DEFAULT_RESULT)
+            let fault =
+                FaultMessage { frame_index: 0, code: FaultCode::Configuration, detail: e.code() };
+            link.send(&Message::Fault(fault)).map_err(Failure::Link)?;
+            return Err(Failure::Source(e));
         }
     };
-    defmt::info!("frame file: {=str}, result file: {=str}", frame_path, result_path);
-
-    let Buffers { gray, depth, half_gray, half_depth } = buffers;
-    let header = read_frame(frame_path, gray, depth)?;
-    defmt::info!(
-        "frame {}x{}, t = {} s, depth scale {} units/m",
-        header.width,
-        header.height,
-        header.timestamp_s,
-        header.depth_scale
-    );
-    let n = header.pixels()?;
-    let (w, h) = (header.width as usize, header.height as usize);
-    let gray_view = GrayView::packed(gray.get(..n).unwrap_or_default(), w, h)?;
-    let depth_view = ImageView::packed(depth.get(..n).unwrap_or_default(), w, h)?;
-
-    let start = systick_start();
-    let report = wi::compute(&gray_view, &depth_view, half_gray, half_depth)?;
-    let ticks = systick_elapsed(start);
-    log_report(&report, ticks);
-    write_result(result_path, &report)
-}
-
-/// Reads a whole frame file into the static buffers, returning its header.
-fn read_frame(
-    path: &str,
-    gray: &mut [u8; MAX_PIXELS],
-    depth: &mut [u16; MAX_PIXELS],
-) -> Result<FrameHeader, Failure> {
-    let mut file = HostFile::open(path, Mode::Read)?;
-    let file_len = file.len()?;
-    let mut head = [0u8; HEADER_LEN];
-    file.read_exact(&mut head)?;
-    let header = FrameHeader::decode(&head)?;
-    let n = header.pixels()?;
-    if n > MAX_PIXELS {
-        return Err(Failure::FrameTooLarge { width: header.width, height: header.height });
-    }
-    let expected = header.file_len()?;
-    if file_len != expected {
-        return Err(FrameFileError::LengthMismatch { expected, got: file_len }.into());
-    }
-    file.read_exact(gray.get_mut(..n).unwrap_or_default())?;
-    // Depth arrives as little-endian bytes: read a chunk at a time and decode it in place, so
-    // the u16 buffer is filled without reinterpreting memory and without a second full buffer.
-    let mut chunk = [0u8; DEPTH_CHUNK_BYTES];
-    for samples in depth.get_mut(..n).unwrap_or_default().chunks_mut(DEPTH_CHUNK_BYTES / 2) {
-        let bytes = chunk.get_mut(..2 * samples.len()).unwrap_or_default();
-        file.read_exact(bytes)?;
-        decode_depth_le(bytes, samples)?;
-    }
-    Ok(header)
-}
-
-/// Logs the result; `ticks` are SysTick counts of the computation (with QEMU `-icount shift=0`,
-/// one tick per 40 emulated instructions on this board's 25 MHz clock; wall-clock otherwise).
-fn log_report(report: &WiReport, ticks: u32) {
-    defmt::info!(
-        "W(I): vga = {=u64}, qvga = {=u64}, qvga depth FNV-1a = {=u64:#x}",
-        report.wi_vga,
-        report.wi_qvga,
-        report.depth_qvga_fnv1a
-    );
-    defmt::info!("compute: {=u32} SysTick ticks", ticks);
-}
-
-/// Writes the result line (and a newline) to `path`.
-fn write_result(path: &str, report: &WiReport) -> Result<(), Failure> {
-    let mut buf = [0u8; 160];
-    let text = wi::format_into(&mut buf, report).ok_or(Failure::ResultTooLong)?;
-    let mut file = HostFile::open(path, Mode::WriteTruncate)?;
-    file.write_all(text.as_bytes())?;
-    file.write_all(b"\n")?;
-    defmt::info!("result written to {=str}", path);
-    Ok(())
-}
-
-/// Starts SysTick free-running from its maximum (24-bit) reload on the core clock.
-fn systick_start() -> u32 {
-    // Taking the peripherals twice is impossible; a second call just measures nothing.
-    let Some(mut p) = cortex_m::Peripherals::take() else {
-        return 0;
+    let Some(peripherals) = cortex_m::Peripherals::take() else {
+        return Err(Failure::Usage);
     };
-    p.SYST.set_clock_source(SystClkSource::Core);
-    p.SYST.set_reload(0x00ff_ffff);
-    p.SYST.clear_current();
-    p.SYST.enable_counter();
-    SYST::get_current()
-}
-
-/// SysTick ticks since `start` (the counter counts down; modulo 2^24, so spans up to 16.7 M).
-fn systick_elapsed(start: u32) -> u32 {
-    start.wrapping_sub(SYST::get_current()) & 0x00ff_ffff
+    let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
+    loop {
+        let outcome =
+            run_frame(&mut source, pipeline, &args.cam, &mut link, &mut clock, SourceError::code)
+                .map_err(Failure::Link)?;
+        match outcome {
+            FrameOutcome::Processed { pose, cost } => defmt::info!(
+                "frame {}: {} inliers, {} matches, tracked {}, keyframe {}; {} + {} + {} ticks",
+                pose.frame_index,
+                pose.inliers,
+                pose.matches,
+                pose.flags.contains(PoseFlags::TRACKED),
+                pose.flags.contains(PoseFlags::KEYFRAME),
+                cost.acquire_ticks,
+                cost.process_ticks,
+                cost.report_ticks
+            ),
+            FrameOutcome::Fault(f) => defmt::warn!("frame {}: fault {}", f.frame_index, f),
+            FrameOutcome::End => break,
+        }
+        if stack::overflowed() {
+            let fault = FaultMessage {
+                frame_index: pipeline.next_index(),
+                code: FaultCode::StackOverflow,
+                detail: 0,
+            };
+            link.send(&Message::Fault(fault)).map_err(Failure::Link)?;
+            return Err(Failure::StackOverflow);
+        }
+    }
+    let mut status = pipeline.status();
+    status.stack_peak_bytes = stack::peak_bytes();
+    defmt::info!("status: {}", status);
+    link.send(&Message::Status(status)).map_err(Failure::Link)
 }
 
 /// Ends the QEMU session with `status`; on a debugger that resumes the core, it waits forever.
@@ -194,6 +143,11 @@ fn exit(status: debug::ExitStatus) -> ! {
     loop {
         cortex_m::asm::wfi();
     }
+}
+
+#[exception]
+fn SysTick() {
+    on_systick_wrap();
 }
 
 /// Set by the first panic, so that a panic while logging does not recurse into the logger.

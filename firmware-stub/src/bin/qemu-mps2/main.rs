@@ -1,21 +1,23 @@
-//! QEMU mps2-an386 (Cortex-M4F): reads one recorded RGB-D frame through semihosting and reports
-//! the paper's W(I) at VGA and QVGA and a checksum of the QVGA depth, all computed by
-//! ferroslam-core with no heap, for the host to compare bit for bit.
+//! QEMU mps2-an386 (Cortex-M4F): replays recorded RGB-D frames through ferroslam's pipeline
+//! within the reference board's RAM budget and sends every pose out of the emulated UART.
 //!
-//! Run it with `cargo run --release --target thumbv7em-none-eabihf -- FRAME [RESULT]` from
-//! `firmware-stub/` (the runner is `firmware-stub/qemu-run.sh`), or through `cargo xtask
-//! firmware-wi`. Arguments come from the semihosting command line (QEMU `-append`): FRAME is a raw
-//! frame file (see `ferroslam_firmware::frame_file`, default `frame.fsrf`), RESULT the file the
-//! result line is written to (default `wi-result.txt`); both relative to QEMU's working directory,
-//! without spaces.
+//! Run by `cargo xtask firmware-replay DATASET --max-frames N --out DIR`, which writes the frames,
+//! boots this binary, decodes the UART capture and compares every pose with the host's replay bit
+//! for bit. By hand (from the workspace root; the runner is `firmware-stub/qemu-run.sh`):
+//! `cargo run --release -p ferroslam-firmware --bin qemu-mps2 --target thumbv7em-none-eabihf --
+//! FRAMES fx fy cx cy width height`.
 //!
-//! Output channels, kept apart so that nothing corrupts the binary defmt stream:
-//! - defmt log frames go to the semihosting console (QEMU's stdout, or the chardev given to
-//!   `-semihosting-config`), nothing else is ever written there;
-//! - the machine-readable result is one text line (`ferroslam-wi v1 ...`, see
-//!   `ferroslam_firmware::WiReport`) in the RESULT file, written with SYS_OPEN/SYS_WRITE;
-//! - the exit status goes back through semihosting: QEMU exits 0 on success, 1 on any failure
-//!   (bad arguments, missing or corrupt frame, panic, hard fault).
+//! - Input: FRAMES, a host file of raw frame files back to back (see
+//!   `ferroslam_firmware::frame_file`), read through semihosting and streamed two sensor rows at a
+//!   time into the QVGA store (`ferroslam_firmware::semihost_source`): the VGA frame is never held.
+//!   The camera intrinsics (at the processing resolution) follow on the command line.
+//! - Processing: `ferroslam_firmware::pipeline::Pipeline` (today the QVGA odometry front end),
+//!   in a `static`, one `run_frame` per frame.
+//! - Output: `ferroslam_core::wire` frames (pose and cost per frame, faults, a final status) on
+//!   CMSDK UART0 (QEMU `-serial file:...`); defmt logs on the semihosting console; exit status 0
+//!   or 1 through semihosting.
+//! - Memory: `memory-qemu-mps2.x` gives the binary only the reference board's 512 KB budget for
+//!   statics and stack, so the link proves the fit; the final status carries the peak stack.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]

@@ -1,0 +1,250 @@
+//! The messages of schema version [`SCHEMA_VERSION`](super::SCHEMA_VERSION): what the firmware
+//! reports per frame (pose, cost), at the end of a run or on request (status), and when something
+//! goes wrong (fault).
+//!
+//! Every field has a fixed meaning and unit; floats travel as their IEEE-754 bits (postcard writes
+//! `f32`/`f64` little-endian), so the host sees exactly the values the firmware computed.
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::Pose;
+use crate::tracking::{FrameResult, FrontendState, FrontendStats};
+
+/// One message on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Message {
+    /// The pose of one frame.
+    Pose(PoseMessage),
+    /// Running totals of the pipeline and the board.
+    Status(StatusMessage),
+    /// What one frame cost, by stage.
+    Cost(CostMessage),
+    /// Something failed; the firmware goes on with the next frame when it can.
+    Fault(FaultMessage),
+}
+
+/// The tracking state after a frame (the front end's [`FrontendState`], as one byte).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TrackingState {
+    /// No keyframe yet.
+    Initializing,
+    /// The frame was tracked (or made the keyframe).
+    Tracking,
+    /// The frame could not be tracked; its pose is the motion-model prediction.
+    Lost,
+}
+
+impl From<FrontendState> for TrackingState {
+    fn from(s: FrontendState) -> Self {
+        match s {
+            FrontendState::Initializing => Self::Initializing,
+            FrontendState::Tracking => Self::Tracking,
+            FrontendState::Lost => Self::Lost,
+        }
+    }
+}
+
+/// Flags of a [`PoseMessage`], one bit each (unknown bits are kept, never an error).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PoseFlags(pub u8);
+
+impl PoseFlags {
+    /// The pose was estimated from this frame's images (else it is a prediction).
+    pub const TRACKED: u8 = 1 << 0;
+    /// The frame became the new keyframe.
+    pub const KEYFRAME: u8 = 1 << 1;
+    /// The motion-model guides gave no pose and a recovery path (the small-image rotation, the
+    /// wide search or the affine bank) found it.
+    pub const RECOVERY: u8 = 1 << 2;
+    /// Tracking restarted at this frame from a new keyframe after a loss (the trajectory is
+    /// continuous but not corrected across it).
+    pub const REINITIALIZED: u8 = 1 << 3;
+
+    /// Whether every bit of `flag` is set.
+    pub const fn contains(self, flag: u8) -> bool {
+        self.0 & flag == flag
+    }
+}
+
+/// The camera pose of one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PoseMessage {
+    /// 0-based index of the frame since the pipeline started.
+    pub frame_index: u32,
+    /// Capture time of the frame, seconds on the recording's (or sensor's) clock.
+    pub timestamp_s: f64,
+    /// Translation of `t_wc` (camera to world), metres: the camera centre in the world frame.
+    pub translation_m: [f32; 3],
+    /// Rotation of `t_wc` as a unit quaternion `[x, y, z, w]` (TUM order).
+    pub rotation_xyzw: [f32; 4],
+    /// Tracking state after the frame.
+    pub state: TrackingState,
+    /// [`PoseFlags`] bits.
+    pub flags: PoseFlags,
+    /// Pose inliers (0 when not tracked), saturated at `u16::MAX`.
+    pub inliers: u16,
+    /// Landmarks matched into the frame, saturated at `u16::MAX`.
+    pub matches: u16,
+}
+
+/// `n` as `u16`, saturated.
+fn saturate_u16(n: usize) -> u16 {
+    u16::try_from(n).unwrap_or(u16::MAX)
+}
+
+impl PoseMessage {
+    /// The message for the front end's result `r` of frame `frame_index` captured at
+    /// `timestamp_s`. The pose's f32 values are copied bit for bit.
+    pub fn from_frame_result(frame_index: u32, timestamp_s: f64, r: &FrameResult) -> Self {
+        let t = &r.t_wc.translation.vector;
+        let q = r.t_wc.rotation.coords;
+        let mut flags = 0;
+        for (on, bit) in [
+            (r.tracked, PoseFlags::TRACKED),
+            (r.keyframe.is_some(), PoseFlags::KEYFRAME),
+            (r.guide_stage.is_recovery(), PoseFlags::RECOVERY),
+            (r.reinitialized, PoseFlags::REINITIALIZED),
+        ] {
+            if on {
+                flags |= bit;
+            }
+        }
+        Self {
+            frame_index,
+            timestamp_s,
+            translation_m: [t.x, t.y, t.z],
+            // nalgebra stores quaternion coordinates as [i, j, k, w].
+            rotation_xyzw: [q.x, q.y, q.z, q.w],
+            state: r.state.into(),
+            flags: PoseFlags(flags),
+            inliers: saturate_u16(r.inliers),
+            matches: saturate_u16(r.matches),
+        }
+    }
+
+    /// `t_wc` as a [`Pose`]; the quaternion is taken as sent (not renormalized), so the values are
+    /// the firmware's bits.
+    pub fn t_wc(&self) -> Pose {
+        let [x, y, z] = self.translation_m;
+        let [qx, qy, qz, qw] = self.rotation_xyzw;
+        let rotation = UnitQuaternion::new_unchecked(Quaternion::new(qw, qx, qy, qz));
+        Pose::from_parts(Translation3::new(x, y, z), rotation)
+    }
+}
+
+/// Running totals since the pipeline started, and what the board knows of its own resources.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StatusMessage {
+    /// Frames processed.
+    pub frames: u32,
+    /// Frames whose pose was estimated from the images.
+    pub tracked_frames: u32,
+    /// Frames in the lost state.
+    pub lost_frames: u32,
+    /// Keyframes made.
+    pub keyframes: u32,
+    /// Frames that took the recovery path ([`PoseFlags::RECOVERY`]).
+    pub recoveries: u32,
+    /// Faults reported.
+    pub faults: u32,
+    /// Bytes of pipeline state (`size_of` the pipeline on the board).
+    pub state_bytes: u32,
+    /// Peak stack use measured by the board, bytes; 0 when not measured.
+    pub stack_peak_bytes: u32,
+}
+
+impl StatusMessage {
+    /// The totals of the front end's `stats`, with the board's figures.
+    pub fn from_stats(stats: &FrontendStats, faults: u32, state_bytes: u32) -> Self {
+        Self {
+            frames: stats.frames,
+            tracked_frames: stats.tracked_frames,
+            lost_frames: stats.lost_frames,
+            keyframes: stats.keyframes,
+            recoveries: stats.bank_recoveries,
+            faults,
+            state_bytes,
+            stack_peak_bytes: 0,
+        }
+    }
+}
+
+/// What one tick of a [`CostMessage`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TickUnit {
+    /// One core clock cycle (SysTick or DWT on the core clock of a real board).
+    CoreCycle,
+    /// A fixed number of executed instructions (QEMU with `-icount shift=0`: SysTick at 25 MHz
+    /// against a 1 GHz virtual instruction clock gives 40 instructions per tick).
+    Instructions {
+        /// Instructions per tick.
+        per_tick: u16,
+    },
+}
+
+/// What one frame cost, by stage, in [`TickUnit`]s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CostMessage {
+    /// The frame ([`PoseMessage::frame_index`]).
+    pub frame_index: u32,
+    /// What a tick is.
+    pub unit: TickUnit,
+    /// Acquiring the frame: reading the sensor (or file) and downsampling it to the profile.
+    pub acquire_ticks: u32,
+    /// The pipeline (today the odometry front end) on the frame.
+    pub process_ticks: u32,
+    /// Encoding and writing the frame's pose message.
+    pub report_ticks: u32,
+}
+
+impl CostMessage {
+    /// Instructions of the three stages together, when the unit is instructions.
+    pub fn total_instructions(&self) -> Option<u64> {
+        match self.unit {
+            TickUnit::Instructions { per_tick } => {
+                let ticks = u64::from(self.acquire_ticks)
+                    + u64::from(self.process_ticks)
+                    + u64::from(self.report_ticks);
+                Some(ticks * u64::from(per_tick))
+            }
+            TickUnit::CoreCycle => None,
+        }
+    }
+}
+
+/// What failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum FaultCode {
+    /// The frame source failed (bus error, sensor timeout, short frame, unreadable file).
+    FrameSource,
+    /// The pipeline rejected the frame (size, timestamp, parameters).
+    FrameRejected,
+    /// A telemetry message could not be encoded.
+    Telemetry,
+    /// The board's configuration is unusable (bad command line, bad calibration).
+    Configuration,
+    /// The stack reached its limit.
+    StackOverflow,
+}
+
+/// A fault and where it happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultMessage {
+    /// The frame being handled ([`PoseMessage::frame_index`] it would have had).
+    pub frame_index: u32,
+    /// What failed.
+    pub code: FaultCode,
+    /// A code of the failing component (its error variant), 0 when it has none.
+    pub detail: u32,
+}

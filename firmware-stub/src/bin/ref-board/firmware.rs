@@ -1,0 +1,117 @@
+//! The reference board's firmware: statics in the H7's memory regions, the camera on SPI1/I2C1,
+//! the serial link on USART1, the pipeline in between.
+
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use cortex_m as _;
+use cortex_m_rt::{ExceptionFrame, entry, exception};
+use ferroslam_core::frame::TelemetrySink;
+use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::wire::{FaultCode, FaultMessage, Message};
+use ferroslam_firmware::camera::{CameraConfig, CameraError, FifoPort, RgbdCamera};
+use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
+use ferroslam_firmware::serial::SerialLink;
+use ferroslam_firmware::stream::HalfFrame;
+
+use crate::h7::{BusyDelay, CycleClock, I2cBus, Pin, SpiDev, UsartTx};
+
+/// Camera intrinsics at the processing resolution (QVGA), pixels: the module's nominal values
+/// (585 px focal length at VGA, halved), a placeholder until the module's calibration is read
+/// from its EEPROM or flash.
+const INTRINSICS_QVGA: (f32, f32, f32, f32) = (292.5, 292.5, 159.75, 119.75);
+
+/// GPIO port numbers (0 = A).
+const PORT_A: usize = 0;
+const PORT_C: usize = 2;
+
+/// The frame store, in AXI SRAM: where a camera DMA would write (DTCM is out of the DMA's reach).
+#[unsafe(link_section = ".axisram")]
+static mut STORE: MaybeUninit<HalfFrame> = MaybeUninit::uninit();
+
+/// The pipeline state, in AXI SRAM (too large for the 128 KiB DTCM, which holds the stack).
+#[unsafe(link_section = ".axisram")]
+static mut PIPELINE: MaybeUninit<Pipeline> = MaybeUninit::uninit();
+
+/// Whether [`take_statics`] has handed the statics out.
+static TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// The pipeline's initial state, in flash: copied into [`PIPELINE`] at start-up. (Writing
+/// `Pipeline::new()` into place directly makes the compiler build the value on the stack first,
+/// and it is larger than the whole DTCM.)
+static PIPELINE_IMAGE: Pipeline = Pipeline::new();
+
+/// The frame store and the pipeline, initialized in place, handed out once (`None` after).
+///
+/// The sections are `NOLOAD`: cortex-m-rt neither zeroes nor copies them, so they are written
+/// here, in place, before any reference to them exists.
+fn take_statics() -> Option<(&'static mut HalfFrame, &'static mut Pipeline)> {
+    if TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    // SAFETY: `TAKEN` makes this the only access to the two statics ever. Each is fully written
+    // before the `&'static mut` to it is created: the store with zeros, which is exactly
+    // `HalfFrame::new()` (integer arrays and an integer size, all 0), the pipeline with a byte
+    // copy of a valid `Pipeline` (a plain-data value: no pointers, no drop).
+    unsafe {
+        let store = (&raw mut STORE).cast::<HalfFrame>();
+        core::ptr::write_bytes(store, 0, 1);
+        let pipeline = (&raw mut PIPELINE).cast::<Pipeline>();
+        core::ptr::copy_nonoverlapping(&raw const PIPELINE_IMAGE, pipeline, 1);
+        Some((&mut *store, &mut *pipeline))
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let Some((store, pipeline)) = take_statics() else { halt() };
+    let Some(core) = cortex_m::Peripherals::take() else { halt() };
+    let mut link = SerialLink::new(UsartTx::usart1());
+    // Gray FIFO: SPI1 with chip select PA4, frame-ready on PC0; depth FIFO: SPI1 with chip select
+    // PA15, frame-ready on PC1 (the two share the bus type and so the driver's SPI type).
+    let gray = FifoPort { spi: SpiDev::spi1(Pin::new(PORT_A, 4)), ready: Pin::new(PORT_C, 0) };
+    let depth = FifoPort { spi: SpiDev::spi1(Pin::new(PORT_A, 15)), ready: Pin::new(PORT_C, 1) };
+    let camera = RgbdCamera::new(I2cBus::i2c1(), gray, depth, BusyDelay, CameraConfig::VGA, store);
+    let mut camera = match camera {
+        Ok(c) => c,
+        Err(e) => report_and_halt(&mut link, e.code()),
+    };
+    if let Err(e) = camera.init() {
+        report_and_halt(&mut link, e.code());
+    }
+    let (fx, fy, cx, cy) = INTRINSICS_QVGA;
+    let Ok(cam) = PinholeCamera::new(fx, fy, cx, cy, 320, 240) else { halt() };
+    let mut clock = CycleClock::start(core.DCB, core.DWT);
+    loop {
+        let code = |e: &CameraError<_, _, _>| e.code();
+        match run_frame(&mut camera, pipeline, &cam, &mut link, &mut clock, code) {
+            Ok(FrameOutcome::Processed { .. } | FrameOutcome::Fault(_)) => {}
+            // A camera never ends; a dead link leaves nothing to report to.
+            Ok(FrameOutcome::End) | Err(_) => halt(),
+        }
+    }
+}
+
+/// Sends a configuration fault (best effort) and stops.
+fn report_and_halt(link: &mut impl TelemetrySink, detail: u32) -> ! {
+    let fault = FaultMessage { frame_index: 0, code: FaultCode::Configuration, detail };
+    let _ = link.send(&Message::Fault(fault));
+    halt()
+}
+
+/// Stops the core (a watchdog, once configured, would reset it).
+fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo<'_>) -> ! {
+    halt()
+}
+
+#[exception]
+unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
+    halt()
+}

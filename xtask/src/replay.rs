@@ -1,0 +1,466 @@
+//! `cargo xtask firmware-replay DATASET [--max-frames N] [--out DIR]`: the firmware in QEMU
+//! against the host replay, pose by pose, bit by bit.
+//!
+//! 1. Writes the first N frames of DATASET at the sensor's resolution (VGA) as raw frame files
+//!    back to back (`frames.fsrs`), decoded by the host simulator's dataset loader.
+//! 2. Builds the firmware and boots `qemu-mps2` on them (`firmware::run_qemu`): it streams each
+//!    frame into its QVGA store two rows at a time, runs the pipeline and sends pose and cost
+//!    messages out of UART0 (`uart.bin`).
+//! 3. Decodes the capture with the core's wire decoder; any dropped frame or fault fails the run.
+//! 4. Runs `ferroslam-sim replay`'s SLAM mode (`datapath::run_odometry`, same back-end quota per
+//!    frame as the firmware) on the same frames at QVGA, and compares every pose as it was output
+//!    frame by frame: timestamp, translation and quaternion as f32 bits, state,
+//!    flags, inliers and matches.
+//! 5. Prints one line (`bit-identical` with the frame count, or the first differing frame and
+//!    field) and writes into DIR: `cost.json` (per-frame SysTick instruction counts), the two
+//!    trajectories (`firmware_trajectory.txt`, `host_trajectory.txt`), the UART capture
+//!    (`uart.bin`) and the decoded firmware log (`firmware.log`). `frames.fsrs` (~0.9 MB a frame)
+//!    is removed after a bit-identical run and kept when something differs.
+
+use std::fmt::Display;
+use std::fs;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result, anyhow, bail};
+use ferroslam_core::config::{QVGA, VGA};
+use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
+use ferroslam_core::wire::{CostMessage, Message, PoseFlags, PoseMessage, TrackingState};
+use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
+use ferroslam_sim::commands::datapath::{OdometryRun, TrackMode, run_odometry};
+use ferroslam_sim::dataset::{Dataset, DatasetOptions};
+use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
+use ferroslam_sim::trajectory::Trajectory;
+use serde_json::json;
+
+use crate::firmware::{self, decode_defmt, elf_sections, flash_and_ram};
+
+/// Frames compared when `--max-frames` is not given.
+pub const DEFAULT_FRAMES: usize = 60;
+
+/// QEMU's time limit: a fixed start-up allowance plus a per-frame allowance (a frame takes well
+/// under a second of QEMU time).
+fn qemu_timeout(frames: usize) -> Duration {
+    Duration::from_secs(60 + 5 * frames as u64)
+}
+
+/// The options of `firmware-replay`.
+#[derive(Debug, Clone)]
+pub struct ReplayOptions {
+    /// The TUM-layout dataset folder.
+    pub dataset: PathBuf,
+    /// Frames to run (the earliest).
+    pub max_frames: usize,
+    /// Output folder.
+    pub out: PathBuf,
+}
+
+impl ReplayOptions {
+    /// Parses `DATASET [--max-frames N] [--out DIR]`; `default_out` when `--out` is missing.
+    pub fn parse(args: &[String], default_out: PathBuf) -> Result<Self> {
+        let mut dataset = None;
+        let (mut max_frames, mut out) = (DEFAULT_FRAMES, default_out);
+        let mut it = args.iter();
+        while let Some(a) = it.next() {
+            match a.as_str() {
+                "--max-frames" => {
+                    let v = it.next().ok_or_else(|| anyhow!("--max-frames needs a value"))?;
+                    max_frames = v.parse().with_context(|| format!("--max-frames {v}"))?;
+                }
+                "--out" => out = it.next().ok_or_else(|| anyhow!("--out needs a value"))?.into(),
+                flag if flag.starts_with("--") => bail!("unknown option {flag}"),
+                path if dataset.is_none() => dataset = Some(PathBuf::from(path)),
+                extra => bail!("unexpected argument {extra}"),
+            }
+        }
+        let dataset = dataset.ok_or_else(|| {
+            anyhow!("usage: firmware-replay DATASET [--max-frames N] [--out DIR]")
+        })?;
+        if max_frames == 0 {
+            bail!("--max-frames must be at least 1");
+        }
+        Ok(Self { dataset, max_frames, out })
+    }
+}
+
+/// Runs the comparison (see the module documentation).
+///
+/// # Errors
+/// A dataset, build or QEMU failure; a firmware fault or a dropped frame; any difference.
+pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
+    fs::create_dir_all(&opts.out).with_context(|| format!("creating {}", opts.out.display()))?;
+    let out = fs::canonicalize(&opts.out)?;
+    let vga =
+        DatasetOptions { profile: VGA, max_frames: Some(opts.max_frames), ..Default::default() };
+    let sensor = Dataset::open(&opts.dataset, &vga)?;
+    let frames = sensor.len();
+    write_frames(&sensor, &out.join("frames.fsrs"))?;
+    drop(sensor);
+
+    let qvga = DatasetOptions { profile: QVGA, ..vga };
+    let dataset = Dataset::open(&opts.dataset, &qvga)?;
+    let c = *dataset.calibration();
+    let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
+        .map_err(|e| anyhow!("calibration: {e}"))?;
+
+    let elf = firmware::build_firmware(root, "qemu-mps2")?;
+    let _ = fs::remove_file(out.join("uart.bin"));
+    let append =
+        format!("frames.fsrs {} {} {} {} {} {}", c.fx, c.fy, c.cx, c.cy, c.width, c.height);
+    let run = firmware::run_qemu(&elf, &out, &append, "uart.bin", qemu_timeout(frames))?;
+    let elf_bytes = fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
+    let (log, log_error) = decode_defmt(&elf_bytes, &run.defmt);
+    fs::write(out.join("firmware.log"), log.join("\n") + "\n")?;
+    if !run.success {
+        for line in log.iter().rev().take(10).rev() {
+            eprintln!("  [firmware] {line}");
+        }
+        let stderr = fs::read_to_string(out.join("qemu-stderr.txt")).unwrap_or_default();
+        bail!(
+            "firmware failed in QEMU ({}; log tail above, all in {}){}{}",
+            run.status,
+            out.join("firmware.log").display(),
+            log_error.map_or(String::new(), |e| format!("; log decoding: {e}")),
+            if stderr.trim().is_empty() {
+                String::new()
+            } else {
+                format!("; QEMU: {}", stderr.trim())
+            }
+        );
+    }
+    let capture = decode_capture(&fs::read(out.join("uart.bin")).context("reading uart.bin")?);
+    check_capture(&capture)?;
+
+    eprintln!("host replay of the same {frames} frames at QVGA ...");
+    let mut reader = dataset.into_reader(8);
+    let mode = TrackMode::Slam { quota: DEFAULT_BACKEND_QUOTA };
+    let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
+    let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
+    write_trajectories(&out, &fw_poses, &host)?;
+    let costs: Vec<CostMessage> = capture
+        .messages
+        .iter()
+        .filter_map(|m| if let Message::Cost(c) = m { Some(*c) } else { None })
+        .collect();
+    let summary = write_cost_json(&out, &elf, &capture, &costs)?;
+
+    match first_difference(&fw_poses, &host) {
+        None => {
+            // ~0.9 MB a frame, and rewritten by every run: kept only when something differs.
+            let _ = fs::remove_file(out.join("frames.fsrs"));
+            println!(
+                "firmware-replay: {frames} frames bit-identical to the host replay (timestamp, \
+                 t_wc translation and quaternion bits, state, flags, inliers, matches); {summary}; \
+                 QEMU {:.1} s",
+                run.elapsed.as_secs_f64()
+            );
+            Ok(())
+        }
+        Some(diff) => {
+            println!("firmware-replay: DIFFERENT at {diff}");
+            bail!("the firmware's poses differ from the host's (first: {diff})")
+        }
+    }
+}
+
+/// Writes the dataset's frames at sensor resolution as raw frame files back to back.
+fn write_frames(dataset: &Dataset, path: &Path) -> Result<()> {
+    let file = fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = BufWriter::new(file);
+    for i in 0..dataset.len() {
+        let f = dataset.load_frame(i)?;
+        let header = FrameHeader {
+            width: u32::try_from(f.width)?,
+            height: u32::try_from(f.height)?,
+            depth_scale: f.depth_scale,
+            timestamp_s: f.timestamp_s,
+        };
+        write_frame(&header, &f.gray, &f.depth, |b| w.write_all(b))
+            .map_err(|e| anyhow!("frame {i}: {e:?}"))?;
+    }
+    w.flush().with_context(|| format!("writing {}", path.display()))
+}
+
+/// A capture is usable when nothing was dropped and the firmware reported no fault.
+fn check_capture(capture: &Capture) -> Result<()> {
+    let s = capture.stats;
+    if s.frames_dropped > 0 || s.frames_unknown_version > 0 || s.bytes_skipped > 0 {
+        bail!(
+            "the UART capture is damaged: {} frames dropped, {} of an unknown version, {} bytes \
+             skipped ({:?})",
+            s.frames_dropped,
+            s.frames_unknown_version,
+            s.bytes_skipped,
+            capture.dropped.first()
+        );
+    }
+    if let Some(Message::Fault(f)) =
+        capture.messages.iter().find(|m| matches!(m, Message::Fault(_)))
+    {
+        bail!("the firmware reported a fault: {f:?}");
+    }
+    if !capture.messages.iter().any(|m| matches!(m, Message::Status(_))) {
+        bail!("the firmware sent no final status: the run did not finish");
+    }
+    Ok(())
+}
+
+/// `name: firmware X, host Y` when `fw != host`.
+fn field<T: PartialEq + Display>(name: &str, fw: T, host: T) -> Option<String> {
+    (fw != host).then(|| format!("{name}: firmware {fw}, host {host}"))
+}
+
+/// The first field that differs, as `frame N (t = T s), FIELD: firmware X, host Y`.
+fn first_difference(fw: &[PoseMessage], host: &OdometryRun) -> Option<String> {
+    let n = fw.len().max(host.online.len());
+    for i in 0..n {
+        let (Some(p), Some(h), Some(hf)) =
+            (fw.get(i), host.online.poses.get(i), host.per_frame.get(i))
+        else {
+            return Some(format!(
+                "frame {i}: the firmware sent {} poses, the host replay made {}",
+                fw.len(),
+                host.online.len()
+            ));
+        };
+        let t = h.t_wc.translation.vector;
+        let q = h.t_wc.rotation.coords;
+        // The host's poses are the core's f32 values widened to f64: narrowing is exact.
+        #[allow(clippy::cast_possible_truncation)]
+        let host_t = [t.x as f32, t.y as f32, t.z as f32];
+        #[allow(clippy::cast_possible_truncation)]
+        let host_q = [q.x as f32, q.y as f32, q.z as f32, q.w as f32];
+        let state = match p.state {
+            TrackingState::Initializing => "initializing",
+            TrackingState::Tracking => "tracking",
+            TrackingState::Lost => "lost",
+        };
+        let bits = |v: f32| format!("{v:e} ({:#010x})", v.to_bits());
+        let diff = field("frame_index", p.frame_index as usize, i)
+            .or_else(|| {
+                field(
+                    "timestamp_s",
+                    format!("{} ({:#x})", p.timestamp_s, p.timestamp_s.to_bits()),
+                    format!("{} ({:#x})", h.timestamp_s, h.timestamp_s.to_bits()),
+                )
+            })
+            .or_else(|| {
+                (0..3).find_map(|k| {
+                    field(&format!("translation_m[{k}]"), bits(p.translation_m[k]), bits(host_t[k]))
+                })
+            })
+            .or_else(|| {
+                (0..4).find_map(|k| {
+                    field(&format!("rotation_xyzw[{k}]"), bits(p.rotation_xyzw[k]), bits(host_q[k]))
+                })
+            })
+            .or_else(|| field("state", state, hf.state))
+            .or_else(|| field("tracked", p.flags.contains(PoseFlags::TRACKED), hf.tracked))
+            .or_else(|| field("keyframe", p.flags.contains(PoseFlags::KEYFRAME), hf.keyframe))
+            .or_else(|| field("recovery", p.flags.contains(PoseFlags::RECOVERY), hf.recovery))
+            .or_else(|| {
+                let reinit = p.flags.contains(PoseFlags::REINITIALIZED);
+                field("reinitialized", reinit, hf.reinitialized)
+            })
+            .or_else(|| field("inliers", usize::from(p.inliers), hf.inliers.min(65535)))
+            .or_else(|| field("matches", usize::from(p.matches), hf.matches.min(65535)));
+        if let Some(d) = diff {
+            return Some(format!("frame {i} (t = {} s), {d}", h.timestamp_s));
+        }
+    }
+    None
+}
+
+/// Writes `firmware_trajectory.txt` and `host_trajectory.txt` (TUM).
+fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &OdometryRun) -> Result<()> {
+    Trajectory::new(fw.iter().map(stamped_pose).collect())
+        .write_tum(&out.join("firmware_trajectory.txt"))?;
+    host.online.write_tum(&out.join("host_trajectory.txt"))?;
+    Ok(())
+}
+
+/// Median and maximum of `v` (0 when empty).
+fn median_max(v: &[u64]) -> (u64, u64) {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    (s.get(s.len() / 2).copied().unwrap_or(0), s.last().copied().unwrap_or(0))
+}
+
+/// Instructions per tick of `c`'s unit (0 for core cycles).
+fn per_tick(c: &CostMessage) -> u64 {
+    match c.unit {
+        ferroslam_core::wire::TickUnit::Instructions { per_tick } => u64::from(per_tick),
+        ferroslam_core::wire::TickUnit::CoreCycle => 0,
+    }
+}
+
+/// One frame's cost as a `cost.json` entry.
+fn cost_entry(c: &CostMessage) -> serde_json::Value {
+    let k = per_tick(c);
+    json!({
+        "frame_index": c.frame_index,
+        "acquire_ticks": c.acquire_ticks,
+        "process_ticks": c.process_ticks,
+        "report_ticks": c.report_ticks,
+        "acquire_instructions": u64::from(c.acquire_ticks) * k,
+        "process_instructions": u64::from(c.process_ticks) * k,
+        "report_instructions": u64::from(c.report_ticks) * k,
+        "total_instructions": c.total_instructions(),
+    })
+}
+
+/// Writes `cost.json` and returns a one-line summary of the cost figures.
+fn write_cost_json(
+    out: &Path,
+    elf: &Path,
+    capture: &Capture,
+    costs: &[CostMessage],
+) -> Result<String> {
+    let per_frame: Vec<_> = costs.iter().map(cost_entry).collect();
+    let process: Vec<u64> =
+        costs.iter().map(|c| u64::from(c.process_ticks) * per_tick(c)).collect();
+    let total: Vec<u64> = costs.iter().filter_map(CostMessage::total_instructions).collect();
+    let (process_median, process_max) = median_max(&process);
+    let (total_median, total_max) = median_max(&total);
+    let status = capture.messages.iter().rev().find_map(|m| match m {
+        Message::Status(s) => Some(*s),
+        _ => None,
+    });
+    let sections = elf_sections(elf).unwrap_or_default();
+    let (flash, ram) = flash_and_ram(&sections);
+    let stack = status.map_or(0, |s| s.stack_peak_bytes);
+    let doc = json!({
+        "unit": "instructions (QEMU mps2-an386, -icount shift=0: SysTick ticks x 40)",
+        "instructions_per_tick": 40,
+        "frames": costs.len(),
+        "process_instructions_median": process_median,
+        "process_instructions_max": process_max,
+        "total_instructions_median": total_median,
+        "total_instructions_max": total_max,
+        "firmware": {
+            "elf": elf.display().to_string(),
+            "flash_bytes": flash,
+            "static_ram_bytes": ram,
+            "stack_peak_bytes": stack,
+            "sections": sections.iter().map(|(n, s)| json!({"name": n, "bytes": s})).collect::<Vec<_>>(),
+        },
+        "status": status.map(|s| json!({
+            "frames": s.frames, "tracked_frames": s.tracked_frames, "lost_frames": s.lost_frames,
+            "keyframes": s.keyframes, "recoveries": s.recoveries, "faults": s.faults,
+            "state_bytes": s.state_bytes, "stack_peak_bytes": s.stack_peak_bytes,
+        })),
+        "uart": {
+            "bytes": capture.stats.bytes_received,
+            "frames_decoded": capture.stats.frames_decoded,
+            "frames_dropped": capture.stats.frames_dropped,
+            "bytes_skipped": capture.stats.bytes_skipped,
+        },
+        "per_frame": per_frame,
+    });
+    let path = out.join("cost.json");
+    fs::write(&path, serde_json::to_string_pretty(&doc)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    let m = |v: u64| v as f64 / 1e6;
+    Ok(format!(
+        "instructions per frame median {:.1} M (pipeline {:.1} M), max {:.1} M; static RAM {ram} B \
+         + peak stack {stack} B = {} B of 524288; cost.json in {}",
+        m(total_median),
+        m(process_median),
+        m(total_max),
+        ram + u64::from(stack),
+        out.display()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use ferroslam_sim::commands::datapath::{DataPathRun, OdometryFrame};
+
+    fn pose(i: u32) -> PoseMessage {
+        PoseMessage {
+            frame_index: i,
+            timestamp_s: 5.0 + f64::from(i),
+            translation_m: [0.1, 0.2, 0.3 * i as f32],
+            rotation_xyzw: [0.0, 0.6, 0.0, 0.8],
+            state: TrackingState::Tracking,
+            flags: PoseFlags(PoseFlags::TRACKED),
+            inliers: 40,
+            matches: 50,
+        }
+    }
+
+    /// The host run the poses `fw` say happened.
+    fn host_of(fw: &[PoseMessage]) -> OdometryRun {
+        let per_frame = fw
+            .iter()
+            .map(|p| OdometryFrame {
+                timestamp_s: p.timestamp_s,
+                state: "tracking",
+                tracked: true,
+                keyframe: false,
+                inliers: 40,
+                matches: 50,
+                guide_matches: 0,
+                guide_stage: "motion-model",
+                recovery: false,
+                reinitialized: false,
+            })
+            .collect();
+        let data = DataPathRun {
+            frames: fw.len(),
+            width: 320,
+            height: 240,
+            per_frame: Vec::new(),
+            source_wait_s: 0.0,
+            process_s: 0.0,
+        };
+        OdometryRun {
+            data,
+            camera: Trajectory::new(fw.iter().map(stamped_pose).collect()),
+            online: Trajectory::new(fw.iter().map(stamped_pose).collect()),
+            keyframes: Trajectory::new(Vec::new()),
+            per_frame,
+            tracked_frames: fw.len(),
+            lost_frames: 0,
+            state_bytes: 0,
+            backend: None,
+        }
+    }
+
+    #[test]
+    fn the_first_differing_frame_and_field_are_named() {
+        let fw: Vec<PoseMessage> = (0..4).map(pose).collect();
+        let host = host_of(&fw);
+        assert_eq!(first_difference(&fw, &host), None);
+        // One bit of one quaternion component of frame 2.
+        let mut changed = fw.clone();
+        changed[2].rotation_xyzw[1] = f32::from_bits(changed[2].rotation_xyzw[1].to_bits() ^ 1);
+        let diff = first_difference(&changed, &host).unwrap();
+        assert!(diff.starts_with("frame 2 (t = 7 s), rotation_xyzw[1]: firmware"), "{diff}");
+        let mut fewer = fw.clone();
+        fewer.pop();
+        assert!(first_difference(&fewer, &host).unwrap().contains("sent 3 poses"));
+        let mut lost = fw;
+        lost[1].state = TrackingState::Lost;
+        let diff = first_difference(&lost, &host).unwrap();
+        assert!(diff.contains("state: firmware lost, host tracking"), "{diff}");
+    }
+
+    #[test]
+    fn options_parse() {
+        let args: Vec<String> =
+            ["data", "--max-frames", "7", "--out", "o"].iter().map(|s| s.to_string()).collect();
+        let o = ReplayOptions::parse(&args, "d".into()).unwrap();
+        assert_eq!((o.dataset, o.max_frames, o.out), ("data".into(), 7, "o".into()));
+        assert!(ReplayOptions::parse(&[], "d".into()).is_err());
+        assert!(
+            ReplayOptions::parse(&["x".into(), "--max-frames".into(), "0".into()], "d".into())
+                .is_err()
+        );
+    }
+}
