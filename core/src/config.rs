@@ -16,11 +16,11 @@ pub mod capacity {
     pub const MAX_FEATURES_PER_FRAME: usize = 512;
     /// Keyframes held in the map arena at once, with their observations (the policy when it is
     /// full is in [`crate::map`]).
-    pub const MAX_KEYFRAMES: usize = 80;
+    pub const MAX_KEYFRAMES: usize = 64;
     /// Landmarks held in the map arena at once.
-    pub const MAX_LANDMARKS: usize = 4096;
+    pub const MAX_LANDMARKS: usize = 2048;
     /// Observations one keyframe records at most (landmarks tracked into it plus new ones).
-    pub const MAX_OBSERVATIONS_PER_KEYFRAME: usize = 160;
+    pub const MAX_OBSERVATIONS_PER_KEYFRAME: usize = 128;
     /// Landmarks the tracker keeps a template for and tracks each frame (its local map).
     pub const MAX_TRACKED_LANDMARKS: usize = 256;
     /// Hard cap on the local bundle-adjustment window, in keyframes (the paper's 50-65 average).

@@ -16,7 +16,8 @@ fn replay(quota: u32) -> OdometryRun {
     let opts = DatasetOptions { max_frames: Some(FRAMES), ..DatasetOptions::default() };
     let dataset = Dataset::open(&dir, &opts).unwrap();
     let c = dataset.calibration();
-    let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize).unwrap();
+    let cam =
+        PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize).unwrap();
     let mut reader = dataset.into_reader(4);
     run_odometry(&mut reader, FRAMES, &cam, QVGA, TrackMode::Slam { quota }).unwrap()
 }

@@ -25,6 +25,9 @@ use crate::config::capacity;
 use crate::map::{KeyFrameId, Map};
 use crate::optim::{BaError, VariableKind};
 
+/// A window keyframe is free only with at least this many observations of the problem's points.
+const MIN_FREE_KEYFRAME_OBSERVATIONS: usize = 20;
+
 /// Marks a keyframe in the window (before cameras are numbered).
 const IN_WINDOW: u16 = u16::MAX;
 /// Marks a fixed neighbour (before cameras are numbered).
@@ -311,10 +314,16 @@ impl Backend {
         } else {
             None
         };
-        let all = window
-            .iter()
-            .map(|&id| (id, Some(id) != gauge))
-            .chain(fixed.iter().map(|&id| (id, false)));
+        // A keyframe seeing few of the points is too weakly held to move: BA would be free to
+        // swing it, so it stays fixed.
+        let mut all: Vec<(KeyFrameId, bool), BA_RIGS> = Vec::new();
+        for &id in window {
+            let held = self.observations_of_points(map, id) >= MIN_FREE_KEYFRAME_OBSERVATIONS;
+            let _ = all.push((id, Some(id) != gauge && held));
+        }
+        for &id in fixed {
+            let _ = all.push((id, false));
+        }
         for (id, free) in all {
             let Some(k) = map.keyframe(id) else { continue };
             let cam = self.ba.add_keyframe(&k.t_wc.inverse(), !free)?;
@@ -328,6 +337,21 @@ impl Backend {
             self.scratch.set_role(id, self.cameras.len() as u16);
         }
         Ok(())
+    }
+
+    /// Observations keyframe `id` makes of the problem's points.
+    fn observations_of_points<const K: usize, const L: usize>(
+        &self,
+        map: &Map<K, L>,
+        id: KeyFrameId,
+    ) -> usize {
+        map.keyframe(id).map_or(0, |k| {
+            let in_problem = |o: &&crate::map::Observation| {
+                map.landmark(o.landmark).is_some()
+                    && self.scratch.point(o.landmark.0.index()).is_some()
+            };
+            k.observations.iter().filter(in_problem).count()
+        })
     }
 
     /// Adds the points with their counted observation slots (fill cursors reset to 0).

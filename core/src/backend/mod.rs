@@ -51,9 +51,9 @@ pub const BA_RIGS: usize = capacity::LOCAL_WINDOW_MAX + 31;
 pub const BA_CAMERAS: usize =
     if capacity::MAX_KEYFRAMES > BA_RIGS { capacity::MAX_KEYFRAMES } else { BA_RIGS };
 /// Points of the back end's adjuster.
-pub const BA_POINTS: usize = 1536;
+pub const BA_POINTS: usize = 1024;
 /// Observations of the back end's adjuster.
-pub const BA_OBSERVATIONS: usize = 8192;
+pub const BA_OBSERVATIONS: usize = 6144;
 
 /// The one adjuster the back end uses for local and global BA (they never run at once).
 pub type BoardBundleAdjuster = BundleAdjuster<BA_RIGS, BA_CAMERAS, BA_POINTS, BA_OBSERVATIONS>;

@@ -64,7 +64,8 @@ pub use patch::{MAX_HALF_SIZE, sample_bilinear};
 pub use region::{RegionMatch, match_region};
 pub use roi::{MAX_ROI_HALF_SIZE, Roi, RoiParams, select_rois};
 pub use track::{
-    MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS, PatchTrack, TrackParams, track_patch,
+    MAX_TRACK_COARSE_STEPS, MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS, PatchTrack, TrackParams,
+    track_patch,
 };
 
 /// Why a region could not be matched.

@@ -16,7 +16,7 @@
 //!    When they give none, the same landmarks are searched with the affine bank
 //!    ([`match_region`](crate::matching::match_region)) instead.
 //! 4. Final stage: from the guides' pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
-//!    are matched with a small search and sub-pixel refinement; [`track_pose`] estimates `t_cw`
+//!    are matched with a small search and sub-pixel refinement; [`track_pose`](super::track_pose) estimates `t_cw`
 //!    from the matches (pixel and, where the frame has it, depth).
 //! 5. Bookkeeping: each landmark counts the frames it was visible and found (a pose inlier);
 //!    landmarks found too rarely or not for long are dropped from the local map (not from the

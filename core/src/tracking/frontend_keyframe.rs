@@ -11,11 +11,13 @@ use crate::config::capacity;
 use crate::features::Feature;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
-use crate::image::DepthView;
-use crate::map::{KeyFrameId, Map, MapError, Observation};
+use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation};
 
 /// Distance of the neighbours checked for depth discontinuities around a new landmark, pixels.
 const DISCONTINUITY_RADIUS_PX: usize = 2;
+
+/// Observations of a keyframe kept for the landmarks it creates (the rest go to its inliers).
+const NEW_LANDMARK_RESERVE: usize = MAX_OBSERVATIONS_PER_KEYFRAME / 2;
 
 /// Features closer than this to the border make no landmark: the template must fit.
 const BORDER_PX: f32 = (PATCH_SIDE / 2) as f32 + 0.5;
@@ -72,12 +74,18 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let t_wc = t_cw.inverse();
         let limit = self.params.reanchor_max_warp;
         let mut recorded = 0;
+        // Room is kept for the new landmarks this keyframe makes (they need their first
+        // observation); the inliers come in the spread order of the final stage.
+        let cap = MAX_OBSERVATIONS_PER_KEYFRAME.saturating_sub(NEW_LANDMARK_RESERVE);
         let items = self.local.items_mut();
         for (k, (corr, &src)) in self.correspondences.iter().zip(&self.sources).enumerate() {
             if !inliers.contains(k) {
                 continue;
             }
             let Some(t) = items.get_mut(usize::from(src)) else { continue };
+            if recorded >= cap {
+                break;
+            }
             let uv = (corr.uv.x, corr.uv.y);
             let Some(obs) = Observation::new(t.id, uv, corr.depth_m) else { continue };
             match map.add_observation(kf, obs) {
@@ -138,9 +146,14 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             let id = match map.add_landmark(p_w, kf) {
                 Ok(id) => id,
                 Err(_) => {
+                    // The landmark arena is full: first drop the landmarks no keyframe observes
+                    // and no one tracks, then retire the oldest keyframe (never this one) so its
+                    // landmarks become such orphans: the map keeps its newest part.
                     let local = &self.local;
-                    if map.remove_orphans(|id| local.contains(id)) == 0 {
-                        break;
+                    if map.remove_orphans(|id| local.contains(id)) == 0
+                        && map.oldest_keyframe() != Some(kf)
+                    {
+                        let _ = map.retire_oldest_keyframe(|id| local.contains(id));
                     }
                     match map.add_landmark(p_w, kf) {
                         Ok(id) => id,
@@ -206,7 +219,10 @@ fn landmark_depth(
     }
     // Inside the image by the check above: the casts are exact.
     let (x, y) = (libm::roundf(f.x) as usize, libm::roundf(f.y) as usize);
-    let z = depth_in_range(&frame.depth, x, y, p.depth_min_m, p.depth_max_m)?;
+    let z = frame
+        .depth
+        .depth_at(f.x, f.y, p.max_relative_depth_step)
+        .filter(|&z| z >= p.depth_min_m && z <= p.depth_max_m)?;
     let r = DISCONTINUITY_RADIUS_PX;
     let neighbours = [(x + r, y), (x.wrapping_sub(r), y), (x, y + r), (x, y.wrapping_sub(r))];
     for (nx, ny) in neighbours {
@@ -216,15 +232,4 @@ fn landmark_depth(
         }
     }
     Some(z)
-}
-
-/// The depth at `(x, y)` when it is a reading within `[min_m, max_m]`.
-pub(crate) fn depth_in_range(
-    depth: &DepthView<'_>,
-    x: usize,
-    y: usize,
-    min_m: f32,
-    max_m: f32,
-) -> Option<f32> {
-    depth.depth_m(x, y).filter(|&z| z >= min_m && z <= max_m)
 }

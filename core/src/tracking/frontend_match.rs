@@ -4,7 +4,6 @@
 use nalgebra::Point2;
 
 use super::frontend::{Frontend, GuideStage};
-use super::frontend_keyframe::depth_in_range;
 use super::sbi::estimate_rotation;
 use super::select::{Candidate, spread};
 use super::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
@@ -242,12 +241,10 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 }
             };
             let Ok((u, v)) = matched else { continue };
-            let (x, y) = (libm::roundf(u), libm::roundf(v));
-            let depth_m = if x >= 0.0 && y >= 0.0 {
-                depth_in_range(&frame.depth, x as usize, y as usize, zmin, zmax)
-            } else {
-                None
-            };
+            let depth_m = frame
+                .depth
+                .depth_at(u, v, self.params.max_relative_depth_step)
+                .filter(|&z| z >= zmin && z <= zmax);
             let Some(lm) = map.landmark(t.id) else { continue };
             let corr = Correspondence { p_w: lm.p_w, uv: Point2::new(u, v), depth_m };
             if !corr.is_valid() || self.correspondences.push(corr).is_err() {

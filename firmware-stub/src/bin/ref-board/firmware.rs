@@ -25,11 +25,13 @@ const INTRINSICS_QVGA: (f32, f32, f32, f32) = (292.5, 292.5, 159.75, 119.75);
 const PORT_A: usize = 0;
 const PORT_C: usize = 2;
 
-/// The frame store, in AXI SRAM: where a camera DMA would write (DTCM is out of the DMA's reach).
-#[unsafe(link_section = ".axisram")]
+/// The frame store, in SRAM1-3 (D2 domain): where a camera DMA would write (DTCM is out of the
+/// DMA's reach), and the one region besides AXI SRAM large enough for it.
+#[unsafe(link_section = ".sram123")]
 static mut STORE: MaybeUninit<HalfFrame> = MaybeUninit::uninit();
 
-/// The pipeline state, in AXI SRAM (too large for the 128 KiB DTCM, which holds the stack).
+/// The pipeline state (front end, map, back end), in AXI SRAM, the largest region (the 128 KiB
+/// DTCM holds the stack).
 #[unsafe(link_section = ".axisram")]
 static mut PIPELINE: MaybeUninit<Pipeline> = MaybeUninit::uninit();
 
