@@ -34,6 +34,7 @@
 //! belongs to the caller.
 
 mod bucket;
+mod descriptor;
 mod filter;
 mod hessian;
 
@@ -41,6 +42,7 @@ mod hessian;
 mod tests;
 
 pub use bucket::{MAX_GRID_CELLS, MAX_PER_CELL};
+pub use descriptor::Descriptor;
 pub use filter::{INTEGRAL_RING_ROWS, OCTAVE_FILTER_SIZES, OCTAVE_STEPS};
 pub use hessian::{HessianDetector, QvgaHessianDetector, VgaHessianDetector};
 

@@ -4,7 +4,8 @@
 //! - A [`KeyFrame`] holds its camera-to-world pose, its timestamp, a creation number and the
 //!   [`Observation`]s it made (landmark, pixel, measured depth), compactly encoded.
 //! - A [`Landmark`] holds its world position, the keyframe that created it, how many keyframes
-//!   observe it, and the counters the back end keeps (times optimized, the reference flag).
+//!   observe it, the counters the back end keeps (times optimized, the reference flag), and a
+//!   compact descriptor of its appearance (for map reuse).
 //! - Ids ([`KeyFrameId`], [`LandmarkId`]) come from the arenas and are generation-checked: an id
 //!   of a removed object is never valid again, even after its slot is reused.
 //!
@@ -39,6 +40,7 @@ pub use arena::{Arena, Handle};
 pub use observation::Observation;
 
 use crate::config::capacity;
+use crate::features::Descriptor;
 use crate::geometry::Pose;
 
 /// Observations one keyframe holds at most.
@@ -80,6 +82,9 @@ pub struct Landmark {
     pub times_optimized: u8,
     /// A reference landmark: frozen in later bundle adjustments, it anchors poses.
     pub reference: bool,
+    /// Its appearance where it was created, for recognizing it again once the tracker no longer
+    /// follows it (map reuse); `None` when none could be computed.
+    pub descriptor: Option<Descriptor>,
 }
 
 /// Why a map operation failed.
@@ -187,7 +192,14 @@ impl<const K: usize, const L: usize> Map<K, L> {
         p_w: Point3<f32>,
         host: KeyFrameId,
     ) -> Result<LandmarkId, MapError> {
-        let lm = Landmark { p_w, host, num_observations: 0, times_optimized: 0, reference: false };
+        let lm = Landmark {
+            p_w,
+            host,
+            num_observations: 0,
+            times_optimized: 0,
+            reference: false,
+            descriptor: None,
+        };
         self.landmarks.insert(lm).map(LandmarkId).map_err(|_| MapError::LandmarksFull)
     }
 

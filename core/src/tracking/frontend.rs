@@ -104,9 +104,9 @@ pub struct FrameResult {
     pub guide_stage: GuideStage,
     /// Landmarks in the local map after this frame.
     pub tracked_landmarks: usize,
-    /// When this frame became a keyframe: the landmarks it observed that were tracked, and the
-    /// landmarks it created.
-    pub keyframe_landmarks: (usize, usize),
+    /// When this frame became a keyframe: the landmarks it observed that were tracked, those it
+    /// re-acquired from the map (map reuse), and those it created.
+    pub keyframe_landmarks: (usize, usize, usize),
 }
 
 /// The attempts of the guide stage, in the order they are tried (see the module documentation):
@@ -223,7 +223,7 @@ pub struct Frontend<const W: usize, const H: usize> {
     /// The previous frame's pose inliers (0 when it was not tracked).
     pub(super) previous_inliers: usize,
     /// The last keyframe's tracked and created landmarks.
-    pub(super) last_keyframe_counts: (usize, usize),
+    pub(super) last_keyframe_counts: (usize, usize, usize),
 }
 
 impl<const W: usize, const H: usize> Default for Frontend<W, H> {
@@ -249,7 +249,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             sources: Vec::new(),
             candidates: Vec::new(),
             motion: MotionModel::new(),
-            rng: TrackingRng::new(0x5EED_F00D),
+            rng: TrackingRng::new(params.rng_seed),
             state: FrontendState::Initializing,
             last: None,
             stats: FrontendStats {
@@ -267,7 +267,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             small_previous: SmallImage::new(),
             previous_t_cw: None,
             previous_inliers: 0,
-            last_keyframe_counts: (0, 0),
+            last_keyframe_counts: (0, 0, 0),
         }
     }
 
@@ -335,7 +335,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.previous_inliers = result.inliers;
         core::mem::swap(&mut self.small_current, &mut self.small_previous);
         let keyframe_landmarks =
-            if result.keyframe.is_some() { self.last_keyframe_counts } else { (0, 0) };
+            if result.keyframe.is_some() { self.last_keyframe_counts } else { (0, 0, 0) };
         Ok(FrameResult { tracked_landmarks: self.local.len(), keyframe_landmarks, ..result })
     }
 
@@ -405,7 +405,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             guide_matches: 0,
             guide_stage: GuideStage::None,
             tracked_landmarks: 0,
-            keyframe_landmarks: (0, 0),
+            keyframe_landmarks: (0, 0, 0),
         }
     }
 
@@ -431,7 +431,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             guide_matches: summary.guides,
             guide_stage: summary.stage,
             tracked_landmarks: 0,
-            keyframe_landmarks: (0, 0),
+            keyframe_landmarks: (0, 0, 0),
         };
         if summary.stage == GuideStage::AffineBank {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);

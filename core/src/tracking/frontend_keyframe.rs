@@ -6,9 +6,10 @@ use nalgebra::Point2;
 
 use super::InlierMask;
 use super::frontend::Frontend;
+use super::frontend_reuse::{FEATURE_WORDS, FeatureSet, contains};
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
 use crate::config::capacity;
-use crate::features::Feature;
+use crate::features::{Descriptor, Feature};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation};
@@ -46,14 +47,26 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         }
         let kf = map.add_keyframe(t_wc, frame.timestamp_s).ok()?;
         let tracked = inliers.map_or(0, |m| self.record_inliers(frame, cam, map, kf, t_cw, m));
-        let created = self.add_new_landmarks(frame, cam, map, kf, &t_wc, inliers);
+        let mut used: FeatureSet = [0; FEATURE_WORDS];
+        let detected =
+            self.detector.detect(&frame.gray, &self.params.hessian, &mut self.features).is_ok();
+        let reacquired = if detected && inliers.is_some() && self.params.map_reuse {
+            self.reacquire(frame, cam, map, kf, t_cw, &mut used)
+        } else {
+            0
+        };
+        let created = if detected {
+            self.add_new_landmarks(frame, cam, map, (kf, &t_wc), inliers, &used)
+        } else {
+            0
+        };
         if inliers.is_none() && created < self.params.min_keyframe_landmarks {
             self.local.clear();
             let _ = map.remove_keyframe(kf);
             map.remove_orphans(|_| false);
             return None;
         }
-        self.last_keyframe_counts = (tracked, created);
+        self.last_keyframe_counts = (tracked, reacquired, created);
         self.reference = Some((kf, t_wc));
         self.inliers_after_keyframe = None;
         self.stats.keyframes = self.stats.keyframes.saturating_add(1);
@@ -101,20 +114,18 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         recorded
     }
 
-    /// Detects features in `frame` and makes landmarks of those with valid depth that are not
-    /// near an inlier of this frame, up to `max_new_landmarks`; returns how many were made.
+    /// Makes landmarks of the features (detected in `frame`) with valid depth that are not
+    /// `used` (re-acquired) nor near an inlier of this frame, up to `max_new_landmarks`; returns
+    /// how many were made.
     fn add_new_landmarks<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
-        kf: KeyFrameId,
-        t_wc: &Pose,
+        (kf, t_wc): (KeyFrameId, &Pose),
         inliers: Option<&InlierMask>,
+        used: &FeatureSet,
     ) -> usize {
-        if self.detector.detect(&frame.gray, &self.params.hessian, &mut self.features).is_err() {
-            return 0;
-        }
         let p = self.params;
         let min_d2 = p.new_landmark_min_distance_px * p.new_landmark_min_distance_px;
         // Where this frame's inliers are: a feature near one is most likely the same point.
@@ -133,6 +144,9 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             let Some(&f) = self.features.get(i) else { break };
             if created >= p.max_new_landmarks {
                 break;
+            }
+            if contains(used, i) {
+                continue;
             }
             let Some(z) = landmark_depth(frame, cam, &f, &p) else { continue };
             let near = taken.iter().any(|&(u, v)| {
@@ -173,6 +187,9 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 break;
             }
             t.fused_weight = 1.0 / (z * z * z * z);
+            if let Some(lm) = map.landmark_mut(id) {
+                lm.descriptor = Descriptor::of(&frame.gray, f.x, f.y);
+            }
             if !self.local.push(t) {
                 break;
             }
@@ -183,7 +200,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
 
     /// Frees one local-map slot if none is free, evicting the landmark not found for longest
     /// (not one found in this frame); `false` when every landmark was found in this frame.
-    fn make_room_in_local_map(&mut self) -> bool {
+    pub(super) fn make_room_in_local_map(&mut self) -> bool {
         if !self.local.is_full() {
             return true;
         }

@@ -84,6 +84,11 @@ pub struct FrontendParams {
     pub cull_min_visible: u16,
     /// A tracked landmark not found for this many frames is dropped. Default 60.
     pub cull_max_unseen_frames: u32,
+    /// Seed of the pose estimator's random sampling (RANSAC). Default `0x5EED_F00D`.
+    pub rng_seed: u64,
+    /// Map reuse: at each keyframe, look for the map's untracked landmarks among its features
+    /// (see `frontend_reuse.rs`). Default `false` (see there for why).
+    pub map_reuse: bool,
 }
 
 impl FrontendParams {
@@ -123,6 +128,8 @@ impl FrontendParams {
         cull_min_found_ratio: 0.3,
         cull_min_visible: 10,
         cull_max_unseen_frames: 60,
+        rng_seed: 0x5EED_F00D,
+        map_reuse: false,
     };
 
     /// These parameters with the depth range of `tunables`.

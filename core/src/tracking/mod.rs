@@ -45,6 +45,7 @@ pub mod frontend;
 mod frontend_keyframe;
 mod frontend_match;
 mod frontend_params;
+mod frontend_reuse;
 pub mod local_map;
 mod mask;
 mod motion;
