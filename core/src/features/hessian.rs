@@ -103,6 +103,9 @@ impl<const W: usize> HessianDetector<W> {
     /// # Errors
     /// [`FeatureError::ImageTooWide`] if `img` is wider than `W`; [`FeatureError::InvalidParams`]
     /// if `params` fails [`HessianParams::validate`]. `out` is empty then.
+    // Never inlined: a large function called once per keyframe gains nothing from it, and
+    // callgrind can then count its instructions by name (`--toggle-collect='*::detect'`).
+    #[inline(never)]
     pub fn detect(
         &mut self,
         img: &GrayView<'_>,
