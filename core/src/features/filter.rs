@@ -1,210 +1,216 @@
-//! The box filters of the Fast-Hessian detector and the per-sample math shared by the strip
-//! detector and the tests' full-frame reference: det(H) at a sample, the sign of the Laplacian,
-//! and the 3D quadratic refinement of a 3x3x3 response cube.
+//! SURF's box filters on a `u16` integral image: det(H) along one sample row or at one sample, and
+//! the sign of the Laplacian. Shared by the strip detector and the tests' full-frame reference.
+//!
+//! # Exact sums modulo 2^16
+//! Integral rows hold the integral image modulo 2^16 (half the memory of `u32`). A box sum taken
+//! from four such values with wrapping arithmetic is exact whenever the true sum is below 2^16,
+//! and every box summed here is: the filters are evaluated lobe by lobe (`Dxx = L - 2M + R`, equal
+//! to SURF's `outer - 3 * middle`), and the largest lobe, `(2l - 1) x l = 17 x 9` pixels in the
+//! 27 filter, sums to at most `153 * 255 = 39,015`.
+//!
+//! # No bounds checks in the inner loop
+//! Each sample reads ten integral rows over a window of `size + 1` columns (`x - b - 1 ..= x + b`,
+//! `b = (size - 1) / 2`). The window length is a const generic (`2 * NP` columns as `NP` column
+//! pairs; the sampling step is two columns, so consecutive samples' windows are one pair apart),
+//! so every tap is a constant index into a fixed-size array.
 
-/// Filter sizes (side length in pixels) of each octave's four layers (SURF's first two octaves).
-pub const OCTAVE_FILTER_SIZES: [[usize; 4]; 2] = [[9, 15, 21, 27], [15, 27, 39, 51]];
+/// Filter sizes (side, in pixels of the level) of the four layers of every pyramid level: SURF's
+/// first octave.
+pub const LEVEL_FILTER_SIZES: [usize; 4] = [9, 15, 21, 27];
 
-/// Sampling step of each octave, in pixels: responses are evaluated at `x, y` multiples of it.
-pub const OCTAVE_STEPS: [usize; 2] = [1, 2];
+/// Sampling step of every level, in pixels of the level (SURF's `init_sample = 2`).
+pub const LEVEL_STEP: usize = 2;
 
-/// Half size of the largest filter of all octaves.
-const MAX_HALF: usize = (OCTAVE_FILTER_SIZES[1][3] - 1) / 2;
+/// Pyramid levels: the image, then its 2x2 mean (the second level's filters are SURF's sizes
+/// 18-54 of the full-resolution image, sampled every fourth pixel).
+pub const LEVELS: usize = 2;
 
-/// Integral-image rows held by the rolling buffer: the largest filter spans `2*MAX_HALF + 1` rows
-/// and its box sums need the row above it too.
-pub const INTEGRAL_RING_ROWS: usize = 2 * MAX_HALF + 2;
+/// Half size `(size - 1) / 2` of the largest filter.
+pub(super) const MAX_HALF: usize = (LEVEL_FILTER_SIZES[3] - 1) / 2;
 
-/// One octave's geometry, so that run-time code iterates octaves instead of indexing tables.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Octave {
-    /// 0 for the first octave, 1 for the second.
-    pub index: usize,
-    /// Sampling step, in pixels.
-    pub step: usize,
-    /// Filter sizes of the four layers, in pixels.
-    pub sizes: [usize; 4],
-}
+/// First sample coordinate (a multiple of the step) where the largest filter fits:
+/// `coord - MAX_HALF - 1 >= 0`, so no box sum reads before the first integral row or column.
+pub(super) const FIRST_SAMPLE: usize = (MAX_HALF + 1).div_ceil(LEVEL_STEP) * LEVEL_STEP;
 
-impl Octave {
-    const fn of(index: usize) -> Self {
-        Self { index, step: OCTAVE_STEPS[index], sizes: OCTAVE_FILTER_SIZES[index] }
-    }
+/// Integral rows held by the rolling buffer: non-maximum suppression at sample row `yc` evaluates
+/// the largest filter at rows `yc +- LEVEL_STEP`, which reads rows `yc - step - MAX_HALF - 1` to
+/// `yc + step + MAX_HALF`.
+pub const INTEGRAL_RING_ROWS: usize = 2 * MAX_HALF + 2 + 2 * LEVEL_STEP;
 
-    /// Half size `(size - 1) / 2` of the octave's largest filter: samples closer than `half + 1`
-    /// pixels to the border have no response in this octave.
-    pub(super) const fn half(&self) -> usize {
-        (self.sizes[3] - 1) / 2
-    }
-
-    /// First sample coordinate (a multiple of the step) where the largest filter fits:
-    /// `coord - half - 1 >= 0`, so box sums never read before the first integral row or column.
-    pub(super) const fn first_sample(&self) -> usize {
-        (self.half() + 1).div_ceil(self.step) * self.step
-    }
-
-    /// Difference of filter size between adjacent layers, in pixels.
-    pub(super) const fn size_step(&self) -> usize {
-        self.sizes[1] - self.sizes[0]
-    }
-}
-
-/// The octaves, first to last.
-pub(super) const OCTAVES: [Octave; 2] = [Octave::of(0), Octave::of(1)];
-
-/// Rows of an integral image: `row(y)[x]` is the sum of pixels `(0..=x, 0..=y)` (mod 2^32).
+/// Rows of an integral image: `row(y)[x]` is the sum of pixels `(0..=x, 0..=y)` modulo 2^16.
 pub(super) trait IntegralRows {
     /// Integral row `y`; empty (reads as zero) if not held.
-    fn row(&self, y: usize) -> &[u32];
+    fn row(&self, y: usize) -> &[u16];
 }
 
-/// Sum of the pixels in rows `top+1..=bot` (given as their bounding integral rows) and columns
-/// `c0..=c1`. Requires `c0 >= 1`; exact because the true sum is below 2^31.
-fn box_sum(top: &[u32], bot: &[u32], c0: usize, c1: usize) -> i32 {
-    let at = |r: &[u32], c: usize| r.get(c).copied().unwrap_or(0);
-    let before = c0.saturating_sub(1);
-    let s = at(bot, c1)
-        .wrapping_sub(at(top, c1))
-        .wrapping_sub(at(bot, before))
-        .wrapping_add(at(top, before));
-    s as i32
-}
-
-/// The integral rows one filter needs at one image row `y`, fetched once per row.
-pub(super) struct Taps<'a> {
+/// The geometry of one layer's filter, in pixels of the level.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Layer {
+    /// Side of the filter.
+    pub size: usize,
+    /// Lobe length `size / 3`.
     l: usize,
+    /// Half size `(size - 1) / 2`.
     b: usize,
-    inv_area: f32,
-    /// Rows `y - l`, `y + l - 1`: the `Dxx` boxes span rows `y-(l-1)..=y+(l-1)`.
-    xx: [&'a [u32]; 2],
-    /// Rows `y - b - 1`, `y + b`, `y - l/2 - 1`, `y + l/2`: the `Dyy` outer and middle boxes.
-    yy: [&'a [u32]; 4],
-    /// Rows `y - l - 1`, `y - 1`, `y`, `y + l`: the upper and lower `Dxy` quadrants.
-    xy: [&'a [u32]; 4],
+    /// Half lobe `(l - 1) / 2`.
+    h: usize,
 }
 
-impl<'a> Taps<'a> {
-    /// Taps of the filter of side `size` at image row `y`; requires `y >= size/2 + 1`.
-    pub(super) fn new<I: IntegralRows>(ii: &'a I, size: usize, y: usize) -> Self {
+impl Layer {
+    /// The layer of index `k` in [`LEVEL_FILTER_SIZES`].
+    pub(super) const fn of(k: usize) -> Self {
+        let size = LEVEL_FILTER_SIZES[k];
         let l = size / 3;
-        let b = (size - 1) / 2;
-        // Rows above `y` saturate at 0 instead of wrapping; callers keep `y >= b + 1` anyway.
+        Self { size, l, b: (size - 1) / 2, h: (l - 1) / 2 }
+    }
+
+    /// `1 / size^2`: det(H) uses the derivatives normalized by the filter's area.
+    fn inv_area(&self) -> f32 {
+        1.0 / (self.size * self.size) as f32
+    }
+
+    /// The ten integral rows a sample at row `y` reads (`y >= b + 1`): `Dxx` rows `y - l` and
+    /// `y + l - 1`; `Dyy` lobe edges `y - b - 1`, `y - h - 1`, `y + h`, `y + b`; `Dxy` quadrant
+    /// edges `y - l - 1`, `y - 1`, `y`, `y + l`.
+    fn rows<'a, I: IntegralRows>(&self, ii: &'a I, y: usize) -> [&'a [u16]; 10] {
+        let (l, b, h) = (self.l, self.b, self.h);
         let up = |d: usize| ii.row(y.saturating_sub(d));
         let down = |d: usize| ii.row(y + d);
-        Self {
-            l,
-            b,
-            inv_area: 1.0 / (size * size) as f32,
-            xx: [up(l), down(l - 1)],
-            yy: [up(b + 1), down(b), up(l / 2 + 1), down(l / 2)],
-            xy: [up(l + 1), up(1), down(0), down(l)],
-        }
-    }
-
-    /// Unnormalized integer `(Dxx, Dyy, Dxy)` at column `x`; requires `x >= b + 1`.
-    fn derivatives(&self, x: usize) -> (i32, i32, i32) {
-        // Columns left of `x` saturate at 0 instead of wrapping; callers keep `x >= b + 1`. Every
-        // box sum is then a true pixel sum (< 2^24), so the i32 arithmetic cannot overflow.
-        let (l, b, h) = (self.l, self.b, self.l / 2);
-        let left = |d: usize| x.saturating_sub(d);
-        let [xt, xb] = self.xx;
-        let dxx = box_sum(xt, xb, left(b), x + b) - 3 * box_sum(xt, xb, left(h), x + h);
-        let [yt, yb, mt, mb] = self.yy;
-        let (c0, c1) = (left(l - 1), x + l - 1);
-        let dyy = box_sum(yt, yb, c0, c1) - 3 * box_sum(mt, mb, c0, c1);
-        let [r0, r1, r2, r3] = self.xy;
-        let dxy = box_sum(r0, r1, left(l), left(1)) + box_sum(r2, r3, x + 1, x + l)
-            - box_sum(r0, r1, x + 1, x + l)
-            - box_sum(r2, r3, left(l), left(1));
-        (dxx, dyy, dxy)
-    }
-
-    /// det(H) of the area-normalized filters at column `x`: `Dxx*Dyy - (0.9*Dxy)^2`.
-    pub(super) fn response(&self, x: usize) -> f32 {
-        let (dxx, dyy, dxy) = self.derivatives(x);
-        // Integer magnitudes stay below 2^24, so the conversions are exact.
-        let fxx = dxx as f32 * self.inv_area;
-        let fyy = dyy as f32 * self.inv_area;
-        let wxy = 0.9 * (dxy as f32 * self.inv_area);
-        fxx * fyy - wxy * wxy
-    }
-
-    /// Whether the trace `Dxx + Dyy` (the Laplacian) at column `x` is `>= 0`.
-    pub(super) fn laplacian_positive(&self, x: usize) -> bool {
-        let (dxx, dyy, _) = self.derivatives(x);
-        dxx + dyy >= 0
+        [up(l), down(l - 1), up(b + 1), up(h + 1), down(h), down(b), up(l + 1), up(1), down(0), down(l)]
     }
 }
 
-/// Responses around a candidate, indexed `[scale][row][column]`, each `-1..=1` around the centre.
-pub(super) type Cube = [[[f32; 3]; 3]; 3];
+/// The layers of a level, smallest first.
+pub(super) const LAYERS: [Layer; 4] = [Layer::of(0), Layer::of(1), Layer::of(2), Layer::of(3)];
 
-/// Whether the centre of `cube` exceeds `threshold` and every one of its 26 neighbours.
-pub(super) fn is_strict_maximum(cube: &Cube, threshold: f32) -> bool {
-    let v = cube[1][1][1];
-    if v.is_nan() || v <= threshold {
-        return false;
-    }
-    let mut neighbours_ge = 0;
-    for plane in cube {
-        for row in plane {
-            for &n in row {
-                if n >= v {
-                    neighbours_ge += 1;
-                }
-            }
-        }
-    }
-    // The centre itself is the only value allowed to be >= v.
-    neighbours_ge == 1
+/// Pairs of columns per window for a filter of lobe `l`: the window spans `3l + 1` columns.
+const fn pairs_of(l: usize) -> usize {
+    (3 * l + 1) / 2
 }
 
-/// Offsets `(dx, dy, ds)` in samples of the extremum of the 3D quadratic fitted to `cube` by
-/// central differences (Brown and Lowe), or `None` when the fit is singular or any offset exceeds
-/// half a sample (the extremum belongs to a neighbour).
-pub(super) fn refine(c: &Cube) -> Option<[f32; 3]> {
-    let v = c[1][1][1];
-    let gx = (c[1][1][2] - c[1][1][0]) / 2.0;
-    let gy = (c[1][2][1] - c[1][0][1]) / 2.0;
-    let gs = (c[2][1][1] - c[0][1][1]) / 2.0;
-    let hxx = c[1][1][2] + c[1][1][0] - 2.0 * v;
-    let hyy = c[1][2][1] + c[1][0][1] - 2.0 * v;
-    let hss = c[2][1][1] + c[0][1][1] - 2.0 * v;
-    let hxy = (c[1][2][2] - c[1][2][0] - c[1][0][2] + c[1][0][0]) / 4.0;
-    let hxs = (c[2][1][2] - c[2][1][0] - c[0][1][2] + c[0][1][0]) / 4.0;
-    let hys = (c[2][2][1] - c[2][0][1] - c[0][2][1] + c[0][0][1]) / 4.0;
-    let h = [[hxx, hxy, hxs], [hxy, hyy, hys], [hxs, hys, hss]];
-    let off = solve3(&h, [-gx, -gy, -gs])?;
-    if off.iter().all(|o| o.is_finite() && *o >= -0.5 && *o <= 0.5) { Some(off) } else { None }
+/// One window of one integral row: `2 * NP` columns from `x - b - 1`, as column pairs.
+type Window<'a, const NP: usize> = &'a [[u16; 2]; NP];
+
+/// Column `c` of a window (a constant once `derivatives` is inlined for a given `NP`).
+#[inline(always)]
+fn tap<const NP: usize>(w: Window<'_, NP>, c: usize) -> u16 {
+    w.get(c / 2).and_then(|p| p.get(c % 2)).copied().unwrap_or(0)
 }
 
-/// Determinant of a 3x3 matrix, expanded along the first row.
-fn det3(m: &[[f32; 3]; 3]) -> f32 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+/// Lobe sum from two row-differences (or column-differences) modulo 2^16: exact, see module docs.
+#[inline(always)]
+fn lobe(hi: u16, lo: u16) -> i32 {
+    i32::from(hi.wrapping_sub(lo))
 }
 
-/// Solves `m * x = r` by Cramer's rule; `None` if `m` is singular or not finite.
-fn solve3(m: &[[f32; 3]; 3], r: [f32; 3]) -> Option<[f32; 3]> {
-    let d = det3(m);
-    if !d.is_finite() || d == 0.0 {
-        return None;
+/// Unnormalized integer `(Dxx, Dyy, Dxy)` of the filter whose windows (in [`Layer::rows`] order)
+/// are `w`; the filter's lobe is `l = (2 * NP - 1) / 3`.
+#[inline(always)]
+fn derivatives<const NP: usize>(w: [Window<'_, NP>; 10]) -> (i32, i32, i32) {
+    let l = (2 * NP - 1) / 3;
+    let b = (3 * l - 1) / 2;
+    let h = (l - 1) / 2;
+    let [xt, xb, y0, y1, y2, y3, q0, q1, q2, q3] = w;
+    // Dxx: three lobes side by side over rows y-l+1..=y+l-1, edges at x-b-1, x-h-1, x+h, x+b.
+    let d = |c: usize| tap(xb, c).wrapping_sub(tap(xt, c));
+    let (e0, e1, e2, e3) = (d(0), d(b - h), d(b + 1 + h), d(2 * b + 1));
+    let dxx = lobe(e1, e0) + lobe(e3, e2) - 2 * lobe(e2, e1);
+    // Dyy: three lobes stacked over columns x-l+1..=x+l-1, edges at rows y-b-1, y-h-1, y+h, y+b.
+    let (ca, cb) = (b + 1 - l, b + l);
+    let e = |r: Window<'_, NP>| tap(r, cb).wrapping_sub(tap(r, ca));
+    let (f0, f1, f2, f3) = (e(y0), e(y1), e(y2), e(y3));
+    let dyy = lobe(f1, f0) + lobe(f3, f2) - 2 * lobe(f2, f1);
+    // Dxy: four l x l quadrants around the centre row and column, which they leave out.
+    let quad = |t: Window<'_, NP>, bo: Window<'_, NP>, c0: usize, c1: usize| {
+        let hi = tap(bo, c1).wrapping_sub(tap(t, c1));
+        lobe(hi, tap(bo, c0).wrapping_sub(tap(t, c0)))
+    };
+    let (left, right) = ((b - l, b), (b + 1, b + 1 + l));
+    let dxy = quad(q0, q1, left.0, left.1) + quad(q2, q3, right.0, right.1)
+        - quad(q0, q1, right.0, right.1)
+        - quad(q2, q3, left.0, left.1);
+    (dxx, dyy, dxy)
+}
+
+/// det(H) of the area-normalized filters: `Dxx*Dyy - (0.9*Dxy)^2`.
+#[inline(always)]
+fn det_h((dxx, dyy, dxy): (i32, i32, i32), inv_area: f32) -> f32 {
+    // Integer magnitudes stay below 2^24, so the conversions are exact.
+    let fxx = dxx as f32 * inv_area;
+    let fyy = dyy as f32 * inv_area;
+    let wxy = 0.9 * (dxy as f32 * inv_area);
+    fxx * fyy - wxy * wxy
+}
+
+/// det(H) of layer `layer` at the samples `x0, x0 + 2, ...` of row `y` into `out` (one per
+/// element, as many as both `out` and the integral rows allow). Requires `x0, y >= b + 1`.
+pub(super) fn response_row<I: IntegralRows>(
+    ii: &I,
+    layer: &Layer,
+    x0: usize,
+    y: usize,
+    out: &mut [f32],
+) {
+    let rows = layer.rows(ii, y);
+    let (base, inv_area) = (x0.saturating_sub(layer.b + 1), layer.inv_area());
+    match layer.l {
+        3 => row_kernel::<{ pairs_of(3) }>(rows, base, inv_area, out),
+        5 => row_kernel::<{ pairs_of(5) }>(rows, base, inv_area, out),
+        7 => row_kernel::<{ pairs_of(7) }>(rows, base, inv_area, out),
+        _ => row_kernel::<{ pairs_of(9) }>(rows, base, inv_area, out),
     }
-    let mut x = [0.0; 3];
-    for (k, xk) in x.iter_mut().enumerate() {
-        let mut mk = *m;
-        for (row, rv) in mk.iter_mut().zip(r) {
-            row[k] = rv;
-        }
-        *xk = det3(&mk) / d;
-    }
-    Some(x)
 }
 
-/// SURF's sigma of a (possibly fractional) filter size: `1.2 * size / 9`.
-pub(super) fn sigma_of_size(size: f32) -> f32 {
-    1.2 * size / 9.0
+/// The windows of `NP` column pairs of row `r`, one per sample from column `base` on.
+fn windows<const NP: usize>(r: &[u16], base: usize) -> core::slice::ArrayWindows<'_, [u16; 2], NP> {
+    r.get(base..).unwrap_or(&[]).as_chunks::<2>().0.array_windows::<NP>()
+}
+
+/// [`response_row`] for one window length, windows starting at column `base`.
+fn row_kernel<const NP: usize>(rows: [&[u16]; 10], base: usize, inv_area: f32, out: &mut [f32]) {
+    let [r0, r1, r2, r3, r4, r5, r6, r7, r8, r9] = rows.map(|r| windows::<NP>(r, base));
+    let xx = r0.zip(r1);
+    let yy = r2.zip(r3).zip(r4.zip(r5));
+    let xy = r6.zip(r7).zip(r8.zip(r9));
+    let samples = out.iter_mut().zip(xx.zip(yy.zip(xy)));
+    for (o, ((a, b), (((c, d), (e, f)), ((g, h), (i, j))))) in samples {
+        *o = det_h(derivatives([a, b, c, d, e, f, g, h, i, j]), inv_area);
+    }
+}
+
+/// The windows of the sample at column `x` (`x >= b + 1`), if the rows hold them.
+fn windows_at<'a, const NP: usize>(rows: [&'a [u16]; 10], x: usize, b: usize) -> Option<[Window<'a, NP>; 10]> {
+    let base = x.checked_sub(b + 1)?;
+    let mut out: [Window<'a, NP>; 10] = [&[[0; 2]; NP]; 10];
+    for (o, r) in out.iter_mut().zip(rows) {
+        let cols = r.get(base..base + 2 * NP)?;
+        *o = cols.as_chunks::<2>().0.try_into().ok()?;
+    }
+    Some(out)
+}
+
+/// Integer `(Dxx, Dyy, Dxy)` of layer `layer` at sample `(x, y)`, if the integral rows hold it.
+fn derivatives_at<I: IntegralRows>(ii: &I, layer: &Layer, x: usize, y: usize) -> Option<(i32, i32, i32)> {
+    let rows = layer.rows(ii, y);
+    let b = layer.b;
+    Some(match layer.l {
+        3 => derivatives(windows_at::<{ pairs_of(3) }>(rows, x, b)?),
+        5 => derivatives(windows_at::<{ pairs_of(5) }>(rows, x, b)?),
+        7 => derivatives(windows_at::<{ pairs_of(7) }>(rows, x, b)?),
+        _ => derivatives(windows_at::<{ pairs_of(9) }>(rows, x, b)?),
+    })
+}
+
+/// det(H) of layer `layer` at sample `(x, y)` (`x, y >= b + 1`): the value [`response_row`]
+/// gives there, bit for bit. `None` if the integral rows do not hold the filter.
+pub(super) fn response_at<I: IntegralRows>(ii: &I, layer: &Layer, x: usize, y: usize) -> Option<f32> {
+    Some(det_h(derivatives_at(ii, layer, x, y)?, layer.inv_area()))
+}
+
+/// Whether the trace `Dxx + Dyy` (the Laplacian) of layer `layer` at `(x, y)` is `>= 0`.
+pub(super) fn laplacian_positive_at<I: IntegralRows>(ii: &I, layer: &Layer, x: usize, y: usize) -> Option<bool> {
+    let (dxx, dyy, _) = derivatives_at(ii, layer, x, y)?;
+    Some(dxx + dyy >= 0)
 }
 
 #[cfg(test)]
@@ -212,29 +218,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn ring_holds_the_largest_filter() {
-        assert_eq!(INTEGRAL_RING_ROWS, 52);
-        assert_eq!(OCTAVES[0].first_sample(), 14);
-        assert_eq!(OCTAVES[1].first_sample(), 26);
-    }
-
-    #[test]
-    fn refine_finds_the_vertex_of_a_quadratic() {
-        // f = -(x-0.2)^2 - 2(y+0.1)^2 - (s-0.3)^2 sampled at -1, 0, 1.
-        let mut c: Cube = [[[0.0; 3]; 3]; 3];
-        for (s, plane) in c.iter_mut().enumerate() {
-            for (y, row) in plane.iter_mut().enumerate() {
-                for (x, v) in row.iter_mut().enumerate() {
-                    let (fx, fy, fs) = (x as f32 - 1.2, y as f32 - 0.9, s as f32 - 1.3);
-                    *v = 10.0 - fx * fx - 2.0 * fy * fy - fs * fs;
-                }
-            }
-        }
-        let o = refine(&c).unwrap();
-        assert!(
-            (o[0] - 0.2).abs() < 1e-5 && (o[1] + 0.1).abs() < 1e-5 && (o[2] - 0.3).abs() < 1e-5
-        );
-        assert!(is_strict_maximum(&c, 0.0));
-        assert!(refine(&[[[0.0; 3]; 3]; 3]).is_none());
+    fn ring_holds_the_largest_filter_one_step_either_side() {
+        assert_eq!(INTEGRAL_RING_ROWS, 32);
+        assert_eq!(FIRST_SAMPLE, 14);
+        assert_eq!(LAYERS.map(|l| pairs_of(l.l)), [5, 8, 11, 14]);
     }
 }
