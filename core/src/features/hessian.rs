@@ -4,8 +4,8 @@
 
 use super::bucket::GridBuckets;
 use super::filter::{
-    FIRST_SAMPLE, LAYERS, LEVEL_FILTER_SIZES, LEVEL_STEP, Layer, MAX_HALF, laplacian_positive_at,
-    response_at, response_row,
+    BELOW, FIRST_SAMPLE, LAYERS, LEVEL_FILTER_SIZES, LEVEL_STEPS, Layer, MAX_HALF,
+    laplacian_positive_at, response_at, response_row,
 };
 use super::refine::{Cube, is_maximum, plane_below, refine, sigma_of_size};
 use super::ring::{IntegralRing, half_row};
@@ -14,6 +14,13 @@ use crate::image::GrayView;
 
 /// Response rows kept per middle layer: the NMS centre row and the rows above and below it.
 const RESPONSE_RING_ROWS: usize = 3;
+
+/// Layers with a layer on either side: the only ones that can hold a maximum, and the only ones
+/// whose responses are computed whole. Their rows share one `W`-wide row of the response ring,
+/// `W / 2` samples each: no level has more samples per row (the image is sampled every second
+/// pixel, its 2x2 mean, `W / 2` wide, every pixel).
+const MIDDLE_LAYERS: usize = LEVEL_FILTER_SIZES.len() - 2;
+const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1] == 1);
 
 /// The Fast-Hessian detector with its whole workspace, for images up to `W` pixels wide (any
 /// height). `W <= MAX_WIDTH` (640) is the intended range.
@@ -24,8 +31,8 @@ const RESPONSE_RING_ROWS: usize = 3;
 #[derive(Debug)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
-    /// Responses of the middle layers 1 and 2 of the level being scanned: middle layer `m`
-    /// (0 for layer 1) at `[ring row][m * (W / 2) + x / LEVEL_STEP]`.
+    /// Responses of the middle layers 1 and 2 of the level being scanned: layer `k` at
+    /// `[ring row][(k - 1) * (W / 2) + x / step]`.
     middle: [[f32; W]; RESPONSE_RING_ROWS],
     buckets: GridBuckets,
 }
@@ -106,18 +113,20 @@ impl<const W: usize> HessianDetector<W> {
     }
 }
 
-/// The last sample coordinate of a level `n` pixels wide (or high): the largest multiple of
-/// [`LEVEL_STEP`] where the largest filter fits, `coord + MAX_HALF <= n - 1`.
-pub(super) fn last_sample(n: usize) -> Option<usize> {
-    n.checked_sub(MAX_HALF + 1).map(|v| v / LEVEL_STEP * LEVEL_STEP)
+/// The last sample coordinate of a level `n` pixels wide (or high) sampled every `step` pixels:
+/// the largest multiple of `step` where the largest filter fits, `coord + MAX_HALF <= n - 1`.
+pub(super) fn last_sample(n: usize, step: usize) -> Option<usize> {
+    n.checked_sub(MAX_HALF + 1).map(|v| v / step * step)
 }
 
-/// The sample grid of one pyramid level: samples at multiples of [`LEVEL_STEP`] from
-/// [`FIRST_SAMPLE`] to `last_x` (inclusive, in pixels of the level) along a row.
+/// The sample grid of one pyramid level: samples at multiples of `step` from [`FIRST_SAMPLE`]
+/// to `last_x` (inclusive, in pixels of the level) along a row.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Grid {
     /// 0 for the image, 1 for its 2x2 mean.
     pub level: usize,
+    /// Sampling step, in pixels of the level.
+    pub step: usize,
     pub last_x: usize,
 }
 
@@ -125,9 +134,15 @@ impl Grid {
     /// The grid of level `level`, `w` x `h` pixels; `None` when it has no sample with a sample on
     /// either side (nothing to suppress against).
     pub(super) fn new(level: usize, w: usize, h: usize) -> Option<Self> {
-        let (last_x, last_y) = (last_sample(w)?, last_sample(h)?);
-        let min = FIRST_SAMPLE + 2 * LEVEL_STEP;
-        (last_x >= min && last_y >= min).then_some(Self { level, last_x })
+        let step = *LEVEL_STEPS.get(level)?;
+        let (last_x, last_y) = (last_sample(w, step)?, last_sample(h, step)?);
+        let min = FIRST_SAMPLE + 2 * step;
+        (last_x >= min && last_y >= min).then_some(Self { level, step, last_x })
+    }
+
+    /// Sample indices `(first, last)` (inclusive) along a row.
+    fn samples(self) -> (usize, usize) {
+        (FIRST_SAMPLE / self.step, self.last_x / self.step)
     }
 
     /// Image coordinate of level coordinate `c`: pixel `c` of level 1 covers image pixels `2c`
@@ -184,71 +199,73 @@ impl<const W: usize> Scan<'_, W> {
     /// layers, evaluated on demand at `+- LEVEL_STEP` rows, need integral rows up to `r`).
     fn after_row(&mut self, grid: Grid, r: usize, threshold: f32, sink: &mut dyn FnMut(Feature)) {
         let Some(y) = r.checked_sub(MAX_HALF) else { return };
-        if y < FIRST_SAMPLE || y % LEVEL_STEP != 0 {
+        if y < FIRST_SAMPLE || y % grid.step != 0 {
             return;
         }
-        self.middle_rows(grid, y);
-        if y >= FIRST_SAMPLE + 2 * LEVEL_STEP {
-            self.suppress_row(grid, y - LEVEL_STEP, threshold, sink);
+        self.middle_rows(grid, y, threshold);
+        if y >= FIRST_SAMPLE + 2 * grid.step {
+            self.suppress_row(grid, y - grid.step, threshold, sink);
         }
     }
 
-    /// Evaluates det(H) of the middle layers along sample row `y`.
-    fn middle_rows(&mut self, grid: Grid, y: usize) {
-        let slot = (y / LEVEL_STEP) % RESPONSE_RING_ROWS;
+    /// Evaluates det(H) of the middle layers along sample row `y` ([`BELOW`] where it cannot
+    /// exceed `threshold`).
+    fn middle_rows(&mut self, grid: Grid, y: usize, threshold: f32) {
+        let slot = (y / grid.step) % RESPONSE_RING_ROWS;
         let Some(dst) = self.middle.get_mut(slot) else { return };
-        let (k0, k1) = (FIRST_SAMPLE / LEVEL_STEP, grid.last_x / LEVEL_STEP);
-        for (m, layer) in [LAYERS[1], LAYERS[2]].iter().enumerate() {
-            let off = m * (W / 2);
-            if let Some(out) = dst.get_mut(off + k0..=off + k1) {
-                response_row(&*self.integral, layer, FIRST_SAMPLE, y, out);
+        let (k0, k1) = grid.samples();
+        let half = W / 2;
+        for (row, layer) in dst.chunks_exact_mut(half).zip(LAYERS.iter().skip(1)) {
+            if let Some(out) = row.get_mut(k0..=k1) {
+                let at = (FIRST_SAMPLE, y);
+                response_row(&*self.integral, layer, grid.step, at, threshold, out);
             }
         }
     }
 
-    /// Sample rows `yc - step`, `yc`, `yc + step` of middle layer `m`.
-    fn middle_planes(&self, m: usize, yc: usize) -> [&[f32]; 3] {
+    /// Sample rows `yc - step`, `yc`, `yc + step` of layer `k` (a middle layer).
+    fn middle_planes(&self, grid: Grid, k: usize, yc: usize) -> [&[f32]; 3] {
         let row = |y: usize| {
-            let r = self.middle.get((y / LEVEL_STEP) % RESPONSE_RING_ROWS);
-            r.and_then(|r| r.get(m * (W / 2)..(m + 1) * (W / 2))).unwrap_or(&[])
+            let r = self.middle.get((y / grid.step) % RESPONSE_RING_ROWS);
+            let at = k.wrapping_sub(1) * (W / 2);
+            r.and_then(|r| r.get(at..at + W / 2)).unwrap_or(&[])
         };
-        [row(yc - LEVEL_STEP), row(yc), row(yc + LEVEL_STEP)]
+        [row(yc - grid.step), row(yc), row(yc + grid.step)]
     }
 
     /// Non-maximum suppression and refinement along sample row `yc` (`yc >= FIRST + step`).
     fn suppress_row(&self, grid: Grid, yc: usize, t: f32, sink: &mut dyn FnMut(Feature)) {
-        let (k0, k1) = (FIRST_SAMPLE / LEVEL_STEP, grid.last_x / LEVEL_STEP);
-        let lower = self.middle_planes(0, yc);
-        let upper = self.middle_planes(1, yc);
-        // Middle layer 0 (layer 1) has layer 0 below it, evaluated on demand; middle layer 1
-        // (layer 2) has layer 3 above it.
-        let passes = [(0, lower, upper, LAYERS[0], LAYERS[1]), (1, upper, lower, LAYERS[3], LAYERS[2])];
-        for (m, own, other, outer, layer) in passes {
-            for i in k0 + 1..k1 {
-                let Some(&v) = own[1].get(i) else { break };
-                // Most samples fail here: `!(v > t)` also rejects NaN.
-                if !(v > t) {
-                    continue;
-                }
+        let (k0, k1) = grid.samples();
+        for (k, layer) in LAYERS.iter().enumerate().take(LAYERS.len() - 1).skip(1) {
+            let own = self.middle_planes(grid, k, yc);
+            let [_, centre, _] = own;
+            let row = centre.get(k0 + 1..k1).unwrap_or(&[]);
+            // Most samples fail the first test: `v > t` also rejects NaN and [`BELOW`].
+            for (i, &v) in (k0 + 1..).zip(row).filter(|&(_, &v)| v > t) {
                 let Some(own_plane) = plane(&own, i) else { continue };
                 if !plane_below(v, &own_plane, 1) {
                     continue;
                 }
-                // The other middle layer is above middle layer 0 and below middle layer 1.
-                let Some(other_plane) = plane(&other, i) else { continue };
-                if !plane_below(v, &other_plane, 2 - 2 * m) {
-                    continue;
-                }
-                let Some(outer_plane) = self.outer_plane(&outer, 2 * m, i, yc, v) else {
+                let at = (i, yc);
+                // The held neighbour layer first: it is cheaper than one evaluated on demand.
+                let (below, above) = if k == 1 {
+                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
+                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
+                    (below, above)
+                } else {
+                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
+                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
+                    (below, above)
+                };
+                // Refinement reads every value: replace the ones not computed by exact ones.
+                let Some(own_plane) = self.exact(own_plane, layer, grid.step, at, true) else {
                     continue;
                 };
-                let cube =
-                    if m == 0 { [outer_plane, own_plane, other_plane] } else {
-                        [other_plane, own_plane, outer_plane]
-                    };
-                let Some(f) = candidate(&cube, t, grid, i, yc, &layer) else { continue };
-                let x = i * LEVEL_STEP;
-                let Some(lap) = laplacian_positive_at(&*self.integral, &layer, x, yc) else {
+                let Some(f) = candidate(&[below, own_plane, above], t, grid, i, yc, layer) else {
+                    continue;
+                };
+                let x = i * grid.step;
+                let Some(lap) = laplacian_positive_at(&*self.integral, layer, x, yc) else {
                     continue;
                 };
                 sink(Feature { laplacian_positive: lap, ..f });
@@ -256,28 +273,74 @@ impl<const W: usize> Scan<'_, W> {
         }
     }
 
+    /// The exact 3x3 responses of layer `k` around sample `(i, yc)`, the cube's scale index `s`
+    /// (0 below the centre's layer, 2 above), if none keeps `v` from being the maximum (see
+    /// [`is_maximum`]): from the held rows for a middle layer, evaluated for an outer one.
+    fn neighbour(
+        &self,
+        grid: Grid,
+        k: usize,
+        s: usize,
+        (i, yc): (usize, usize),
+        v: f32,
+    ) -> Option<[[f32; 3]; 3]> {
+        let layer = LAYERS.get(k)?;
+        if k == 0 || k + 1 == LAYERS.len() {
+            return self.outer_plane(layer, grid.step, s, (i, yc), v);
+        }
+        let p = plane(&self.middle_planes(grid, k, yc), i)?;
+        if !plane_below(v, &p, s) {
+            return None;
+        }
+        self.exact(p, layer, grid.step, (i, yc), false)
+    }
+
+    /// `plane`, the 3x3 responses of `layer` around sample `(i, yc)`, with [`BELOW`] replaced
+    /// by the exact response where refinement reads it: everywhere in the candidate's own layer
+    /// (`corners`), the centre and its four neighbours in the layers below and above.
+    fn exact(
+        &self,
+        mut plane: [[f32; 3]; 3],
+        layer: &Layer,
+        step: usize,
+        (i, yc): (usize, usize),
+        corners: bool,
+    ) -> Option<[[f32; 3]; 3]> {
+        for (dy, row) in plane.iter_mut().enumerate() {
+            for (dx, r) in row.iter_mut().enumerate() {
+                if *r == BELOW && (corners || dx == 1 || dy == 1) {
+                    let (x, y) = ((i + dx) * step, yc + dy * step);
+                    *r = response_at(&*self.integral, layer, x.checked_sub(step)?, y - step)?;
+                }
+            }
+        }
+        Some(plane)
+    }
+
     /// The 3x3 responses of `layer` around sample `(i, yc)`, evaluated from the integral rows, at
     /// scale index `s` of the cube (0 below the centre's layer, 2 above); `None` as soon as one
-    /// keeps `v` from being the maximum (see [`is_maximum`]).
+    /// keeps `v` from being the maximum (see [`is_maximum`]). The centre goes first: it is the
+    /// one most likely to be larger.
     fn outer_plane(
         &self,
         layer: &Layer,
+        step: usize,
         s: usize,
-        i: usize,
-        yc: usize,
+        (i, yc): (usize, usize),
         v: f32,
     ) -> Option<[[f32; 3]; 3]> {
+        const ORDER: [(usize, usize); 9] =
+            [(1, 1), (0, 1), (1, 0), (1, 2), (2, 1), (0, 0), (0, 2), (2, 0), (2, 2)];
         let mut p = [[0.0; 3]; 3];
-        for (dy, row) in p.iter_mut().enumerate() {
-            let y = (yc + dy * LEVEL_STEP).checked_sub(LEVEL_STEP)?;
-            for (dx, r) in row.iter_mut().enumerate() {
-                let x = ((i + dx) * LEVEL_STEP).checked_sub(LEVEL_STEP)?;
-                *r = response_at(&*self.integral, layer, x, y)?;
-                // Layers below the centre's precede it (must be smaller), layers above follow.
-                if *r > v || (*r == v && s == 0) {
-                    return None;
-                }
+        for (dy, dx) in ORDER {
+            let y = (yc + dy * step).checked_sub(step)?;
+            let x = ((i + dx) * step).checked_sub(step)?;
+            let r = response_at(&*self.integral, layer, x, y)?;
+            // Layers below the centre's precede it (must be smaller), layers above follow.
+            if r > v || (r == v && s == 0) {
+                return None;
             }
+            *p.get_mut(dy)?.get_mut(dx)? = r;
         }
         Some(p)
     }
@@ -307,7 +370,7 @@ pub(super) fn candidate(
         return None;
     }
     let [ox, oy, os] = refine(cube)?;
-    let s = LEVEL_STEP as f32;
+    let s = grid.step as f32;
     let size_step = (LEVEL_FILTER_SIZES[1] - LEVEL_FILTER_SIZES[0]) as f32;
     let size = layer.size as f32 + os * size_step;
     Some(Feature {

@@ -13,7 +13,7 @@
 //!    summed lobe by lobe), so wrapping `u16` arithmetic gives it exactly.
 //! 2. SURF's first octave: the box-filter second derivatives `Dxx`, `Dyy`, `Dxy` of four filter
 //!    sizes ([`LEVEL_FILTER_SIZES`]: 9/15/21/27 pixels of the level), sampled every second pixel
-//!    of the level ([`LEVEL_STEP`], SURF's `init_sample = 2`) and normalized by the filter area,
+//!    of the level ([`LEVEL_STEPS`], SURF's `init_sample = 2`) and normalized by the filter area,
 //!    give `det(H) = Dxx*Dyy - (0.9*Dxy)^2`. On the image this is every second pixel at sigma
 //!    1.2-3.6; on the 2x2 mean, every fourth image pixel at sizes 18-54 (sigma 2.4-7.2).
 //! 3. Only the two middle layers (15 and 21) can hold a maximum: their response rows are
@@ -61,7 +61,7 @@ mod ring;
 mod tests;
 
 pub use bucket::{MAX_GRID_CELLS, MAX_PER_CELL};
-pub use filter::{INTEGRAL_RING_ROWS, LEVEL_FILTER_SIZES, LEVEL_STEP, LEVELS};
+pub use filter::{INTEGRAL_RING_ROWS, LEVEL_FILTER_SIZES, LEVEL_STEPS, LEVELS};
 pub use hessian::{HessianDetector, QvgaHessianDetector, VgaHessianDetector};
 
 use crate::config::capacity::MAX_FEATURES_PER_FRAME;

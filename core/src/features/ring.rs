@@ -8,8 +8,6 @@ use super::filter::{INTEGRAL_RING_ROWS, IntegralRows};
 #[derive(Debug)]
 pub(super) struct IntegralRing<const W: usize> {
     rows: [[u16; W]; INTEGRAL_RING_ROWS],
-    /// Column sums of every image row added so far (modulo 2^16).
-    column_sums: [u16; W],
 }
 
 impl<const W: usize> IntegralRows for IntegralRing<W> {
@@ -21,21 +19,38 @@ impl<const W: usize> IntegralRows for IntegralRing<W> {
 impl<const W: usize> IntegralRing<W> {
     /// An empty ring (`const`, so that the detector can initialize a `static`).
     pub(super) const fn new() -> Self {
-        Self { rows: [[0; W]; INTEGRAL_RING_ROWS], column_sums: [0; W] }
+        Self { rows: [[0; W]; INTEGRAL_RING_ROWS] }
     }
 
-    /// Adds image row `y` (rows must come in order from 0; row 0 starts a new image). Pixels
-    /// beyond `W` are ignored.
+    /// Adds image row `y` (rows must come in order from 0; row 0 starts a new image): integral
+    /// row `y` is integral row `y - 1` plus the running sum along image row `y`. Pixels beyond
+    /// `W` are ignored.
     pub(super) fn push(&mut self, y: usize, pixels: impl Iterator<Item = u8>) {
-        if y == 0 {
-            self.column_sums.fill(0);
-        }
-        let Some(dst) = self.rows.get_mut(y % INTEGRAL_RING_ROWS) else { return };
+        let slot = y % INTEGRAL_RING_ROWS;
+        let prev_slot = (y + INTEGRAL_RING_ROWS - 1) % INTEGRAL_RING_ROWS;
+        // Split the ring so that the previous row can be read while the new one is written.
+        let (dst, prev) = if prev_slot < slot {
+            let (head, tail) = self.rows.split_at_mut(slot);
+            (tail.first_mut(), head.get(prev_slot))
+        } else {
+            let (head, tail) = self.rows.split_at_mut(prev_slot);
+            (head.get_mut(slot), tail.first())
+        };
+        let Some(dst) = dst else { return };
         let mut acc = 0u16;
-        for ((d, cs), p) in dst.iter_mut().zip(self.column_sums.iter_mut()).zip(pixels) {
-            *cs = cs.wrapping_add(u16::from(p));
-            acc = acc.wrapping_add(*cs);
-            *d = acc;
+        match prev {
+            Some(prev) if y > 0 => {
+                for ((d, &above), p) in dst.iter_mut().zip(prev.iter()).zip(pixels) {
+                    acc = acc.wrapping_add(u16::from(p));
+                    *d = above.wrapping_add(acc);
+                }
+            }
+            _ => {
+                for (d, p) in dst.iter_mut().zip(pixels) {
+                    acc = acc.wrapping_add(u16::from(p));
+                    *d = acc;
+                }
+            }
         }
     }
 }
