@@ -96,11 +96,7 @@ fn main() {
     let frames: Vec<Gray> =
         names.iter().step_by(stride).take(n).map(|f| load(&dataset, f, !vga)).collect();
     println!("{} frames, {}x{}", frames.len(), frames[0].w, frames[0].h);
-    if args.iter().any(|a| a == "--save-raw") {
-        for (k, g) in frames.iter().enumerate() {
-            std::fs::write(format!("/tmp/frame{k}_{}x{}.raw", g.w, g.h), &g.px).unwrap();
-        }
-    }
+
     if vga {
         run(&mut Box::new(VgaHessianDetector::new()), &frames, &params, dump);
     } else {

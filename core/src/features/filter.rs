@@ -6,27 +6,44 @@
 //! from four such values with wrapping arithmetic is exact whenever the true sum is below 2^16,
 //! and every box summed here is: the filters are evaluated lobe by lobe (`Dxx = L - 2M + R`, equal
 //! to SURF's `outer - 3 * middle`), and the largest lobe, `(2l - 1) x l = 17 x 9` pixels in the
-//! 27 filter, sums to at most `153 * 255 = 39,015`.
+//! 27 filter, sums to at most `153 * 255 = 39,015` (checked at compile time for every size).
 //!
-//! # No bounds checks in the inner loop
-//! Each sample reads ten integral rows over a window of `size + 1` columns (`x - b - 1 ..= x + b`,
-//! `b = (size - 1) / 2`). The window length is a const generic (`2 * NP` columns as `NP` column
-//! pairs; the sampling step is two columns, so consecutive samples' windows are one pair apart),
-//! so every tap is a constant index into a fixed-size array.
+//! # Cost
+//! A sample reads ten integral rows over a window of `size + 1` columns (`x - b - 1 ..= x + b`,
+//! `b = (size - 1) / 2`): 16 taps for `Dxx` and `Dyy`, 16 more for `Dxy`. The window is a
+//! fixed-size array (its length a const generic per layer), so every tap is a constant index.
+//! Along a row, `Dxy` is computed only where `fxx * fyy` exceeds the threshold: det(H) cannot
+//! exceed it elsewhere, and that is over 90% of the samples of 7-Scenes frames at threshold 30.
 
 /// Filter sizes (side, in pixels of the level) of the four layers of every pyramid level: SURF's
-/// first octave.
+/// first octave. Only the two middle layers can hold a maximum (they have a layer on either side).
 pub const LEVEL_FILTER_SIZES: [usize; 4] = [9, 15, 21, 27];
 
-/// Sampling step of each level, in pixels of the level (1 or 2; 2 is SURF's `init_sample = 2`).
+/// Pyramid levels: the image, then its 2x2 mean, on which the filters of
+/// [`LEVEL_FILTER_SIZES`] are those of sizes 18-54 of the image.
+pub const LEVELS: usize = 2;
+
+/// Sampling step of each level, in pixels of the level: the image every second pixel (SURF's
+/// `init_sample = 2`), its 2x2 mean every pixel. Both levels are thus sampled every second image
+/// pixel, as SURF's second octave was.
 pub const LEVEL_STEPS: [usize; LEVELS] = [2, 1];
 
 /// The largest of [`LEVEL_STEPS`].
-const MAX_STEP: usize = if LEVEL_STEPS[0] > LEVEL_STEPS[1] { LEVEL_STEPS[0] } else { LEVEL_STEPS[1] };
+const MAX_STEP: usize =
+    if LEVEL_STEPS[0] > LEVEL_STEPS[1] { LEVEL_STEPS[0] } else { LEVEL_STEPS[1] };
 
-/// Pyramid levels: the image, then its 2x2 mean (the second level's filters are SURF's sizes
-/// 18-54 of the full-resolution image, sampled every fourth pixel).
-pub const LEVELS: usize = 2;
+// Every lobe (`(2l - 1) x l` pixels) and every pair of `Dxy` quadrants (`2 x l x l`) of every
+// layer sums to less than 2^16 (see the module docs).
+const _: () = {
+    let mut k = 0;
+    while k < LEVEL_FILTER_SIZES.len() {
+        let l = LEVEL_FILTER_SIZES[k] / 3;
+        assert!((2 * l - 1) * l * 255 < 1 << 16 && 2 * l * l * 255 < 1 << 16);
+        // The lobes `with_window!` has window types for.
+        assert!(LEVEL_FILTER_SIZES[k] == 3 * l && (l == 3 || l == 5 || l == 7 || l == 9));
+        k += 1;
+    }
+};
 
 /// Half size `(size - 1) / 2` of the largest filter.
 pub(super) const MAX_HALF: usize = (LEVEL_FILTER_SIZES[LEVEL_FILTER_SIZES.len() - 1] - 1) / 2;
@@ -79,7 +96,18 @@ impl Layer {
         let (l, b, h) = (self.l, self.b, self.h);
         let up = |d: usize| ii.row(y.saturating_sub(d));
         let down = |d: usize| ii.row(y + d);
-        [up(l), down(l - 1), up(b + 1), up(h + 1), down(h), down(b), up(l + 1), up(1), down(0), down(l)]
+        [
+            up(l),
+            down(l - 1),
+            up(b + 1),
+            up(h + 1),
+            down(h),
+            down(b),
+            up(l + 1),
+            up(1),
+            down(0),
+            down(l),
+        ]
     }
 }
 
@@ -288,7 +316,7 @@ fn second_all_from<'a, T: Window<'a>>(
 }
 
 /// Integer `(Dxx, Dyy, Dxy)` of `layer` at sample `(x, y)`, if the integral rows hold it.
-fn derivatives_at<I: IntegralRows>(
+pub(super) fn derivatives_at<I: IntegralRows>(
     ii: &I,
     layer: &Layer,
     x: usize,

@@ -25,9 +25,9 @@ const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1
 /// The Fast-Hessian detector with its whole workspace, for images up to `W` pixels wide (any
 /// height). `W <= MAX_WIDTH` (640) is the intended range.
 ///
-/// Size: `2*W*33` bytes of integral rows and column sums, `12*W` bytes of response rows and
-/// 12,392 bytes of grid cells: 37,352 bytes for W = 320, 62,312 bytes for W = 640 (the unit tests
-/// check both figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
+/// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows and 12,392 bytes of
+/// grid cells: 36,712 bytes for W = 320, 61,032 bytes for W = 640 (the unit tests check both
+/// figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
 #[derive(Debug)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
@@ -66,7 +66,7 @@ impl<const W: usize> HessianDetector<W> {
     /// use ferroslam_core::features::{FeatureVec, HessianParams, QvgaHessianDetector};
     /// use ferroslam_core::image::GrayView;
     ///
-    /// // ~37 KiB: on the board, keep it in a `static` (e.g. a `StaticCell`), not on the stack.
+    /// // ~36 KiB: on the board, keep it in a `static` (e.g. a `StaticCell`), not on the stack.
     /// let mut detector = QvgaHessianDetector::new();
     /// let pixels = [128u8; 64 * 48];
     /// let img = GrayView::packed(&pixels, 64, 48)?;
@@ -196,7 +196,7 @@ impl<const W: usize> Scan<'_, W> {
 
     /// Work once integral row `r` is in: the middle layers' response row `r - MAX_HALF` (the
     /// last whose filters it completes), then suppression one sample row above it (whose outer
-    /// layers, evaluated on demand at `+- LEVEL_STEP` rows, need integral rows up to `r`).
+    /// layers, evaluated on demand at `+- step` rows, need integral rows up to `r`).
     fn after_row(&mut self, grid: Grid, r: usize, threshold: f32, sink: &mut dyn FnMut(Feature)) {
         let Some(y) = r.checked_sub(MAX_HALF) else { return };
         if y < FIRST_SAMPLE || y % grid.step != 0 {

@@ -4,24 +4,25 @@
 //!
 //! # Pipeline
 //!
-//! Two pyramid levels are scanned one after the other: the image, then its 2x2 mean (rounded as
-//! [`crate::image::downsample_gray_2x`] does, produced row by row, never held). On each level:
+//! Two pyramid levels are scanned one after the other ([`LEVELS`]): the image, then its 2x2 mean
+//! (rounded as [`crate::image::downsample_gray_2x`] does, made row by row and never held). On
+//! each level:
 //!
 //! 1. A rolling integral image of the last [`INTEGRAL_RING_ROWS`] (32) rows, modulo 2^16: each
 //!    row is added once, so neither a full-frame integral image (307 KB at 320x240) nor the
 //!    half-size image is ever held. Every box sum the filters take is below 2^16 (they are
 //!    summed lobe by lobe), so wrapping `u16` arithmetic gives it exactly.
 //! 2. SURF's first octave: the box-filter second derivatives `Dxx`, `Dyy`, `Dxy` of four filter
-//!    sizes ([`LEVEL_FILTER_SIZES`]: 9/15/21/27 pixels of the level), sampled every second pixel
-//!    of the level ([`LEVEL_STEPS`], SURF's `init_sample = 2`) and normalized by the filter area,
-//!    give `det(H) = Dxx*Dyy - (0.9*Dxy)^2`. On the image this is every second pixel at sigma
-//!    1.2-3.6; on the 2x2 mean, every fourth image pixel at sizes 18-54 (sigma 2.4-7.2).
-//! 3. Only the two middle layers (15 and 21) can hold a maximum: their response rows are
-//!    computed and kept (three rows each, enough for non-maximum suppression one row behind). A
-//!    middle-layer sample above the threshold that beats its 8 neighbours in its own layer and
+//!    sizes ([`LEVEL_FILTER_SIZES`]: 9/15/21/27 pixels of the level), normalized by the filter
+//!    area, give `det(H) = Dxx*Dyy - (0.9*Dxy)^2`. The image is sampled every second pixel
+//!    (SURF's `init_sample = 2`), its 2x2 mean every pixel ([`LEVEL_STEPS`]): filter sizes 9-27
+//!    and 18-54 of the image, both every second image pixel.
+//! 3. Only the two middle layers (15 and 21) can hold a maximum, so only their response rows are
+//!    computed and kept (three rows each, enough for non-maximum suppression one row behind),
+//!    and `Dxy` only where `Dxx*Dyy` exceeds the threshold (det(H) cannot exceed it elsewhere).
+//!    A middle-layer sample above the threshold that beats its 8 neighbours in its own layer and
 //!    9 in the other middle layer is then compared with the 9 samples of the outer layer (9 or
-//!    27), evaluated on demand from the integral rows. The outer layers are thus computed only
-//!    around the few such samples, never whole.
+//!    27), evaluated on demand from the integral rows: the outer layers are never computed whole.
 //! 4. A 3D quadratic (Taylor) fit refines position and scale, and the candidate is dropped if any
 //!    offset exceeds one sample (as OpenCV's SURF does; the maximum is unique in its 3x3x3
 //!    neighbourhood, ties going to the first sample in scan order, so no neighbour reports it).
@@ -29,27 +30,29 @@
 //!    [`HessianParams::per_cell_cap`] for the selection rule).
 //!
 //! The result is bit-identical to a full-frame computation of all four layers of both levels (the
-//! unit tests check this against a full-frame reference): box sums are exact integers and every
-//! float is computed by the same expressions in the same order, with `+ - * /` only (no fused
-//! multiply-add). Sampling every second pixel loses no accuracy on blobs: the quadratic fit
-//! places Gaussian blobs within 0.5 pixel (unit tests).
+//! unit tests check this against a full-frame reference): box sums are exact integers, the
+//! values skipped in steps 3 are provably below every candidate, and every float is computed by
+//! the same expressions in the same order, with `+ - * /` only (no fused multiply-add). Sampling
+//! every second pixel costs no accuracy on blobs: the fit places Gaussian blobs within 0.1 pixel
+//! (unit tests).
 //!
 //! # Cost
 //!
-//! Per level pixel: one integral update, then per sample (a quarter of the pixels) two det(H)
-//! evaluations of 32 integral reads each. At QVGA on 7-Scenes frames that is about 4.2 M host
-//! instructions per [`HessianDetector::detect`] (the `detect_bench` example, under callgrind),
-//! against 95 M for the previous detector that sampled the first octave at every pixel and
-//! computed all layers.
+//! Per frame: one integral update per pixel of both levels, then two `Dxx`/`Dyy` evaluations (16
+//! integral reads each) per sample, a quarter of the image's pixels per level. On 7-Scenes QVGA
+//! frames (the `detect_bench` example under callgrind) [`HessianDetector::detect`] costs about
+//! 4.2 M host x86-64 instructions (6.5 M when built without auto-vectorization, closer to a
+//! scalar Cortex-M) and yields about 140 features at the front end's threshold of 30; the
+//! previous detector, every pixel and every layer of a first octave, cost 95 M for 165.
 //!
 //! # Memory
 //!
 //! [`HessianDetector<W>`] owns all scratch; place it in a `static` or initialize it in place.
-//! Its size is `2*W*(INTEGRAL_RING_ROWS + 1)` bytes of integral rows and column sums,
-//! `4*W*3` bytes of middle-layer response rows and about `16*MAX_GRID_CELLS*MAX_PER_CELL` bytes
-//! of cell candidates: [`QvgaHessianDetector`] (W = 320) is 37,352 bytes (about 37 KiB),
-//! [`VgaHessianDetector`] (W = 640) 62,312 bytes. The output vector
-//! (`MAX_FEATURES_PER_FRAME` x 20 bytes = 10,240 bytes) belongs to the caller.
+//! Its size is `2*W*INTEGRAL_RING_ROWS` bytes of integral rows, `4*W*3` bytes of middle-layer
+//! response rows and about `16*MAX_GRID_CELLS*MAX_PER_CELL` bytes of cell candidates:
+//! [`QvgaHessianDetector`] (W = 320) is 36,712 bytes (about 36 KiB), [`VgaHessianDetector`]
+//! (W = 640) 61,032 bytes. The output vector (`MAX_FEATURES_PER_FRAME` x 20 bytes = 10,240
+//! bytes) belongs to the caller.
 
 mod bucket;
 mod filter;
@@ -79,8 +82,9 @@ pub struct Feature {
     /// Row, in pixels; pixel centres are at integers, 0 at the top pixel's centre.
     pub y: f32,
     /// Scale as SURF's Gaussian sigma, in pixels: `1.2 * filter_size / 9` at the refined filter
-    /// size. For a Gaussian blob of standard deviation `s` it is about `0.75 * s` (measured: the
-    /// box filters are wider than the Gaussians this rule assigns them).
+    /// size in image pixels (on the 2x2 mean image, twice its size there). For a Gaussian blob of
+    /// standard deviation `s` it is about `0.75 * s` (measured: the box filters are wider than
+    /// the Gaussians this rule assigns them).
     pub scale: f32,
     /// det(H) of the area-normalized box filters at the detection sample, in (gray levels)^2.
     pub response: f32,
@@ -130,9 +134,9 @@ pub struct HessianParams {
     /// Minimum det(H) of a feature, in (gray levels)^2 with the box filters normalized by their
     /// area (OpenCV's `hessianThreshold` scale). Finite and `>= 0`. Default 100.
     pub threshold: f32,
-    /// Pyramid levels scanned: 1 (filter sizes 9-27 every second pixel, maxima at sigma 2.0-2.8
-    /// px, refined within 1.6-3.2) or 2 (adds the 2x2 mean image: sizes 18-54 every fourth
-    /// pixel, maxima at sigma 4.0-5.6 px, refined within 3.2-6.4). Default 2.
+    /// Pyramid levels scanned ([`LEVELS`]): 1 (the image: filter sizes 9-27, maxima at sigma
+    /// 2.0-2.8 px, refined within 1.2-3.6) or 2 (adds its 2x2 mean: sizes 18-54 of the image,
+    /// maxima at sigma 4.0-5.6 px, refined within 2.4-7.2). Default 2.
     pub octaves: u8,
     /// Grid columns for bucketing, `>= 1`. Default 8.
     pub grid_cols: u8,

@@ -8,7 +8,9 @@
 extern crate std;
 
 use super::bucket::{GridBuckets, rank};
-use super::filter::{FIRST_SAMPLE, IntegralRows, LAYERS, laplacian_positive_at, response_at};
+use super::filter::{
+    FIRST_SAMPLE, IntegralRows, LAYERS, derivatives_at, laplacian_positive_at, response_at,
+};
 use super::hessian::{Grid, candidate, last_sample, plane};
 use super::*;
 use crate::image::{GrayView, GrayViewMut, downsample_gray_2x};
@@ -125,6 +127,53 @@ fn texture(w: usize, h: usize, seed: u32) -> Vec<u8> {
         })
         .collect();
     (0..w * h).map(|k| blocks[(k / w / 4) * (w / 4 + 1) + (k % w) / 4]).collect()
+}
+
+/// Pixel sum of rows `y0..=y1`, columns `x0..=x1`, in 64-bit integers.
+fn brute_box(img: &GrayView<'_>, (x0, x1): (usize, usize), (y0, y1): (usize, usize)) -> i64 {
+    (y0..=y1)
+        .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+        .map(|(x, y)| i64::from(img.get(x, y).unwrap()))
+        .sum()
+}
+
+#[test]
+fn lobe_sums_modulo_2_16_are_exact_even_on_saturated_images() {
+    // Saturated (255) blocks make the largest lobes reach their maximum sums; the texture around
+    // them gives every sign of every derivative.
+    let (w, h) = (120, 100);
+    let mut data = texture(w, h, 13);
+    for y in 20..70 {
+        for x in 30..90 {
+            if x < 60 || (x / 9 + y / 11) % 3 != 0 {
+                data[y * w + x] = 255;
+            }
+        }
+    }
+    let img = GrayView::packed(&data, w, h).unwrap();
+    let ii = FullIntegral::new(&img);
+    for layer in &LAYERS {
+        let (l, b) = (layer.size / 3, (layer.size - 1) / 2);
+        let h2 = (l - 1) / 2;
+        for y in (b + 1..h - b).step_by(3) {
+            for x in (b + 1..w - b).step_by(3) {
+                let rows_xx = (y - (l - 1), y + (l - 1));
+                let dxx = brute_box(&img, (x - b, x + b), rows_xx)
+                    - 3 * brute_box(&img, (x - h2, x + h2), rows_xx);
+                let cols_yy = (x - (l - 1), x + (l - 1));
+                let dyy = brute_box(&img, cols_yy, (y - b, y + b))
+                    - 3 * brute_box(&img, cols_yy, (y - h2, y + h2));
+                let (up, down, left, right) =
+                    ((y - l, y - 1), (y + 1, y + l), (x - l, x - 1), (x + 1, x + l));
+                let dxy = brute_box(&img, left, up) + brute_box(&img, right, down)
+                    - brute_box(&img, right, up)
+                    - brute_box(&img, left, down);
+                let got = derivatives_at(&ii, layer, x, y).unwrap();
+                let got = (i64::from(got.0), i64::from(got.1), i64::from(got.2));
+                assert_eq!(got, (dxx, dyy, dxy), "size {} at ({x}, {y})", layer.size);
+            }
+        }
+    }
 }
 
 /// The workspace is built at compile time, so it can live in a `static` (no stack copy).
@@ -378,5 +427,3 @@ fn detection_is_repeatable_on_a_reused_workspace() {
     det.detect(&GrayView::packed(&a, w, h).unwrap(), &p, &mut again).unwrap();
     assert_eq!(first, again);
 }
-
-
