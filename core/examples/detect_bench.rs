@@ -9,6 +9,11 @@
 //!     target/release/examples/detect_bench ../shared/datasets/7scenes-redkitchen-1000 qvga
 //! ```
 //!
+//! A Cortex-M core has no SIMD for this code; for a count closer to it, build the bench without
+//! auto-vectorization into its own target directory:
+//! `RUSTFLAGS="-C llvm-args=-vectorize-loops=false -C llvm-args=-vectorize-slp=false"
+//! CARGO_TARGET_DIR=/tmp/target-scalar cargo build --release -p ferroslam-core --example detect_bench`.
+//!
 //! Arguments: `DATASET [qvga|vga] [--frames N] [--stride S] [--threshold T] [--dump]`. Frames
 //! `0, S, 2S, ...` (N of them, default 10 with stride 100) of `DATASET/rgb.txt` are decoded to gray
 //! with OpenCV's BT.601 fixed-point luma (as host-sim does), halved once for `qvga` (the default)
