@@ -1,62 +1,39 @@
-//! The strip-wise Fast-Hessian detector: a rolling integral image, rolling response rows and
-//! non-maximum suppression one sample row behind the newest response row.
+//! The strip-wise Fast-Hessian detector: per pyramid level, a rolling integral image, rolling
+//! response rows of the two middle layers, and non-maximum suppression one sample row behind the
+//! newest response row, with the outer layers evaluated only around candidates.
 
 use super::bucket::GridBuckets;
 use super::filter::{
-    Cube, INTEGRAL_RING_ROWS, IntegralRows, OCTAVES, Octave, Taps, is_strict_maximum, refine,
-    sigma_of_size,
+    BELOW, FIRST_SAMPLE, LAYERS, LEVEL_FILTER_SIZES, LEVEL_STEPS, Layer, MAX_HALF,
+    laplacian_positive_at, response_at, response_row,
 };
+use super::refine::{Cube, is_maximum, plane_below, refine, sigma_of_size};
+use super::ring::{IntegralRing, half_row};
 use super::{Feature, FeatureError, FeatureVec, HessianParams};
 use crate::image::GrayView;
 
-/// Response rows kept per layer: the NMS centre row and the rows above and below it.
+/// Response rows kept per middle layer: the NMS centre row and the rows above and below it.
 const RESPONSE_RING_ROWS: usize = 3;
-/// Layers per octave.
-const LAYERS: usize = 4;
 
-/// The rolling integral image: row `y` of the image's integral lives in slot `y % ring rows`.
-#[derive(Debug)]
-struct IntegralRing<const W: usize> {
-    rows: [[u32; W]; INTEGRAL_RING_ROWS],
-    /// Column sums of every image row added so far (mod 2^32).
-    column_sums: [u32; W],
-}
-
-impl<const W: usize> IntegralRows for IntegralRing<W> {
-    fn row(&self, y: usize) -> &[u32] {
-        self.rows.get(y % INTEGRAL_RING_ROWS).map_or(&[], |r| &r[..])
-    }
-}
-
-impl<const W: usize> IntegralRing<W> {
-    /// Adds image row `y` (the rows must come in order from 0).
-    fn push(&mut self, y: usize, pixels: &[u8]) {
-        if y == 0 {
-            self.column_sums.fill(0);
-        }
-        let Some(dst) = self.rows.get_mut(y % INTEGRAL_RING_ROWS) else { return };
-        let mut acc = 0u32;
-        for ((d, cs), &p) in dst.iter_mut().zip(self.column_sums.iter_mut()).zip(pixels) {
-            *cs = cs.wrapping_add(u32::from(p));
-            acc = acc.wrapping_add(*cs);
-            *d = acc;
-        }
-    }
-}
+/// Layers with a layer on either side: the only ones that can hold a maximum, and the only ones
+/// whose responses are computed whole. Their rows share one `W`-wide row of the response ring,
+/// `W / 2` samples each: no level has more samples per row (the image is sampled every second
+/// pixel, its 2x2 mean, `W / 2` wide, every pixel).
+const MIDDLE_LAYERS: usize = LEVEL_FILTER_SIZES.len() - 2;
+const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1] == 1);
 
 /// The Fast-Hessian detector with its whole workspace, for images up to `W` pixels wide (any
 /// height). `W <= MAX_WIDTH` (640) is the intended range.
 ///
-/// Size: `4*W*53` bytes of integral rows and column sums, `72*W` bytes of response rows and
-/// 12,392 bytes of grid cells: 103,272 bytes for W = 320, 194,152 bytes for W = 640 (the unit tests
-/// check both figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
+/// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows and 12,392 bytes of
+/// grid cells: 36,712 bytes for W = 320, 61,032 bytes for W = 640 (the unit tests check both
+/// figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
 #[derive(Debug)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
-    /// Octave 0: `[layer][ring row][x]`.
-    responses0: [[[f32; W]; RESPONSE_RING_ROWS]; LAYERS],
-    /// Octave 1 (every second pixel): layer `k` in `[k / 2][ring row][(k % 2) * W / 2 + x / 2]`.
-    responses1: [[[f32; W]; RESPONSE_RING_ROWS]; LAYERS / 2],
+    /// Responses of the middle layers 1 and 2 of the level being scanned: layer `k` at
+    /// `[ring row][(k - 1) * (W / 2) + x / step]`.
+    middle: [[f32; W]; RESPONSE_RING_ROWS],
     buckets: GridBuckets,
 }
 
@@ -75,22 +52,21 @@ impl<const W: usize> HessianDetector<W> {
     /// A detector with a zeroed workspace (`const`, so it can initialize a `static`).
     pub const fn new() -> Self {
         Self {
-            integral: IntegralRing { rows: [[0; W]; INTEGRAL_RING_ROWS], column_sums: [0; W] },
-            responses0: [[[0.0; W]; RESPONSE_RING_ROWS]; LAYERS],
-            responses1: [[[0.0; W]; RESPONSE_RING_ROWS]; LAYERS / 2],
+            integral: IntegralRing::new(),
+            middle: [[0.0; W]; RESPONSE_RING_ROWS],
             buckets: GridBuckets::new(),
         }
     }
 
     /// Detects features in `img` and writes the bucketed selection into `out` (cleared first),
     /// in selection order (each cell's strongest first, see [`HessianParams::per_cell_cap`]).
-    /// An image too small for the smallest octave gives no features.
+    /// An image too small for the first level gives no features.
     ///
     /// ```
     /// use ferroslam_core::features::{FeatureVec, HessianParams, QvgaHessianDetector};
     /// use ferroslam_core::image::GrayView;
     ///
-    /// // ~101 KiB: on the board, keep it in a `static` (e.g. a `StaticCell`), not on the stack.
+    /// // ~36 KiB: on the board, keep it in a `static` (e.g. a `StaticCell`), not on the stack.
     /// let mut detector = QvgaHessianDetector::new();
     /// let pixels = [128u8; 64 * 48];
     /// let img = GrayView::packed(&pixels, 64, 48)?;
@@ -103,6 +79,9 @@ impl<const W: usize> HessianDetector<W> {
     /// # Errors
     /// [`FeatureError::ImageTooWide`] if `img` is wider than `W`; [`FeatureError::InvalidParams`]
     /// if `params` fails [`HessianParams::validate`]. `out` is empty then.
+    // Never inlined: a large function called once per keyframe gains nothing from it, and
+    // callgrind can then count its instructions by name (`--toggle-collect='*::detect'`).
+    #[inline(never)]
     pub fn detect(
         &mut self,
         img: &GrayView<'_>,
@@ -112,15 +91,13 @@ impl<const W: usize> HessianDetector<W> {
         out.clear();
         params.validate()?;
         self.buckets.reset(params, img.width(), img.height());
-        let Self { integral, responses0, responses1, buckets } = self;
-        let mut scan = Scan { integral, responses0, responses1 };
-        scan.run(img, params, &mut |f| buckets.insert(&f))?;
+        let Self { integral, middle, buckets } = self;
+        Scan { integral, middle }.run(img, params, &mut |f| buckets.insert(&f))?;
         self.buckets.select(usize::from(params.max_features), out)
     }
 
     /// Calls `sink` with every refined local maximum above the threshold, before bucketing, in a
-    /// fixed scan order (by the image row that completes the sample's neighbourhood, then octave,
-    /// layer and column).
+    /// fixed scan order (level, then the sample row, middle layer and column).
     ///
     /// # Errors
     /// As [`HessianDetector::detect`].
@@ -131,16 +108,59 @@ impl<const W: usize> HessianDetector<W> {
         sink: &mut dyn FnMut(Feature),
     ) -> Result<(), FeatureError> {
         params.validate()?;
-        let Self { integral, responses0, responses1, .. } = self;
-        Scan { integral, responses0, responses1 }.run(img, params, sink)
+        let Self { integral, middle, .. } = self;
+        Scan { integral, middle }.run(img, params, sink)
+    }
+}
+
+/// The last sample coordinate of a level `n` pixels wide (or high) sampled every `step` pixels:
+/// the largest multiple of `step` where the largest filter fits, `coord + MAX_HALF <= n - 1`.
+pub(super) fn last_sample(n: usize, step: usize) -> Option<usize> {
+    n.checked_sub(MAX_HALF + 1).map(|v| v / step * step)
+}
+
+/// The sample grid of one pyramid level: samples at multiples of `step` from [`FIRST_SAMPLE`]
+/// to `last_x` (inclusive, in pixels of the level) along a row.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Grid {
+    /// 0 for the image, 1 for its 2x2 mean.
+    pub level: usize,
+    /// Sampling step, in pixels of the level.
+    pub step: usize,
+    pub last_x: usize,
+}
+
+impl Grid {
+    /// The grid of level `level`, `w` x `h` pixels; `None` when it has no sample with a sample on
+    /// either side (nothing to suppress against).
+    pub(super) fn new(level: usize, w: usize, h: usize) -> Option<Self> {
+        let step = *LEVEL_STEPS.get(level)?;
+        let (last_x, last_y) = (last_sample(w, step)?, last_sample(h, step)?);
+        let min = FIRST_SAMPLE + 2 * step;
+        (last_x >= min && last_y >= min).then_some(Self { level, step, last_x })
+    }
+
+    /// Sample indices `(first, last)` (inclusive) along a row.
+    fn samples(self) -> (usize, usize) {
+        (FIRST_SAMPLE / self.step, self.last_x / self.step)
+    }
+
+    /// Image coordinate of level coordinate `c`: pixel `c` of level 1 covers image pixels `2c`
+    /// and `2c + 1`, so its centre is at `2c + 0.5`.
+    fn to_image(self, c: f32) -> f32 {
+        if self.level == 0 { c } else { 2.0 * c + 0.5 }
+    }
+
+    /// Image pixels per pixel of the level.
+    fn factor(self) -> f32 {
+        if self.level == 0 { 1.0 } else { 2.0 }
     }
 }
 
 /// Mutable borrows of the scan's scratch, split from the grid buckets.
 struct Scan<'a, const W: usize> {
     integral: &'a mut IntegralRing<W>,
-    responses0: &'a mut [[[f32; W]; RESPONSE_RING_ROWS]; LAYERS],
-    responses1: &'a mut [[[f32; W]; RESPONSE_RING_ROWS]; LAYERS / 2],
+    middle: &'a mut [[f32; W]; RESPONSE_RING_ROWS],
 }
 
 impl<const W: usize> Scan<'_, W> {
@@ -150,142 +170,213 @@ impl<const W: usize> Scan<'_, W> {
         params: &HessianParams,
         sink: &mut dyn FnMut(Feature),
     ) -> Result<(), FeatureError> {
-        let w = img.width();
+        let (w, h) = img.size();
         if w > W {
             return Err(FeatureError::ImageTooWide { width: w, max: W });
         }
-        for (r, pixels) in img.rows().enumerate() {
-            self.integral.push(r, pixels);
-            for oct in OCTAVES.iter().take(usize::from(params.octaves)) {
-                // Response row `y` needs integral rows up to `y + half`: it is ready now.
-                let Some(y) = r.checked_sub(oct.half()) else { continue };
-                let s = oct.step;
-                if y < oct.first_sample() || y % s != 0 {
-                    continue;
-                }
-                self.response_row(oct, y, w);
-                // NMS runs one sample row behind, once three response rows are held.
-                if y >= oct.first_sample() + 2 * s {
-                    self.suppress_row(oct, y - s, w, params.threshold, sink);
-                }
+        let t = params.threshold;
+        if let Some(grid) = Grid::new(0, w, h) {
+            for (r, pixels) in img.rows().enumerate() {
+                self.integral.push(r, pixels.iter().copied());
+                self.after_row(grid, r, t, sink);
+            }
+        }
+        if params.octaves >= 2
+            && let Some(grid) = Grid::new(1, w / 2, h / 2)
+        {
+            let mut rows = img.rows();
+            let pairs = core::iter::from_fn(|| Some((rows.next()?, rows.next()?)));
+            for (r, (top, bottom)) in pairs.enumerate() {
+                self.integral.push(r, half_row(top, bottom));
+                self.after_row(grid, r, t, sink);
             }
         }
         Ok(())
     }
 
-    /// Sample columns `(first, last)` (inclusive, in samples) of octave `oct` for width `w`.
-    fn sample_columns(oct: &Octave, w: usize) -> Option<(usize, usize)> {
-        let s = oct.step;
-        let last_x = w.checked_sub(oct.half() + 1)?;
-        let first = oct.first_sample() / s;
-        let last = last_x / s;
-        (first <= last).then_some((first, last))
+    /// Work once integral row `r` is in: the middle layers' response row `r - MAX_HALF` (the
+    /// last whose filters it completes), then suppression one sample row above it (whose outer
+    /// layers, evaluated on demand at `+- step` rows, need integral rows up to `r`).
+    fn after_row(&mut self, grid: Grid, r: usize, threshold: f32, sink: &mut dyn FnMut(Feature)) {
+        let Some(y) = r.checked_sub(MAX_HALF) else { return };
+        if y < FIRST_SAMPLE || y % grid.step != 0 {
+            return;
+        }
+        self.middle_rows(grid, y, threshold);
+        if y >= FIRST_SAMPLE + 2 * grid.step {
+            self.suppress_row(grid, y - grid.step, threshold, sink);
+        }
     }
 
-    fn layer_row(&self, oct: &Octave, layer: usize, y: usize) -> &[f32] {
-        let slot = (y / oct.step) % RESPONSE_RING_ROWS;
-        let row = if oct.index == 0 {
-            self.responses0.get(layer).and_then(|l| l.get(slot)).map(|r| &r[..])
-        } else {
-            let off = (layer % 2) * (W / 2);
-            let half = self.responses1.get(layer / 2).and_then(|l| l.get(slot));
-            half.and_then(|r| r.get(off..off + W / 2))
-        };
-        row.unwrap_or(&[])
-    }
-
-    /// Evaluates det(H) of the four layers of octave `o` along image row `y`.
-    fn response_row(&mut self, oct: &Octave, y: usize, w: usize) {
-        let Some((first, last)) = Self::sample_columns(oct, w) else { return };
-        let s = oct.step;
-        for (layer, &size) in oct.sizes.iter().enumerate() {
-            // The taps borrow the integral ring, the output borrows a response ring: split them.
-            let taps = Taps::new(&*self.integral, size, y);
-            let slot = (y / s) % RESPONSE_RING_ROWS;
-            let dst: &mut [f32] = if oct.index == 0 {
-                self.responses0
-                    .get_mut(layer)
-                    .and_then(|l| l.get_mut(slot))
-                    .map_or(&mut [], |r| &mut r[..])
-            } else {
-                let off = (layer % 2) * (W / 2);
-                let half = self.responses1.get_mut(layer / 2).and_then(|l| l.get_mut(slot));
-                half.and_then(|r| r.get_mut(off..off + W / 2)).unwrap_or(&mut [])
-            };
-            for (i, d) in dst.iter_mut().enumerate().take(last + 1).skip(first) {
-                *d = taps.response(i * s);
+    /// Evaluates det(H) of the middle layers along sample row `y` ([`BELOW`] where it cannot
+    /// exceed `threshold`).
+    fn middle_rows(&mut self, grid: Grid, y: usize, threshold: f32) {
+        let slot = (y / grid.step) % RESPONSE_RING_ROWS;
+        let Some(dst) = self.middle.get_mut(slot) else { return };
+        let (k0, k1) = grid.samples();
+        let half = W / 2;
+        for (row, layer) in dst.chunks_exact_mut(half).zip(LAYERS.iter().skip(1)) {
+            if let Some(out) = row.get_mut(k0..=k1) {
+                let at = (FIRST_SAMPLE, y);
+                response_row(&*self.integral, layer, grid.step, at, threshold, out);
             }
         }
     }
 
-    /// Non-maximum suppression and refinement along sample row `yc` of octave `o`.
-    fn suppress_row(
-        &self,
-        oct: &Octave,
-        yc: usize,
-        w: usize,
-        threshold: f32,
-        sink: &mut dyn FnMut(Feature),
-    ) {
-        let Some((first, last)) = Self::sample_columns(oct, w) else { return };
-        let s = oct.step;
-        let sizes = oct.sizes;
-        for m in 1..LAYERS - 1 {
-            let rows = |layer: usize| {
-                [
-                    self.layer_row(oct, layer, yc.saturating_sub(s)),
-                    self.layer_row(oct, layer, yc),
-                    self.layer_row(oct, layer, yc + s),
-                ]
-            };
-            let planes = [rows(m - 1), rows(m), rows(m + 1)];
-            let centre = planes[1][1];
-            for i in first + 1..last {
-                if !centre.get(i).is_some_and(|&v| v > threshold) {
+    /// Sample rows `yc - step`, `yc`, `yc + step` of layer `k` (a middle layer).
+    fn middle_planes(&self, grid: Grid, k: usize, yc: usize) -> [&[f32]; 3] {
+        let row = |y: usize| {
+            let r = self.middle.get((y / grid.step) % RESPONSE_RING_ROWS);
+            let at = k.wrapping_sub(1) * (W / 2);
+            r.and_then(|r| r.get(at..at + W / 2)).unwrap_or(&[])
+        };
+        [row(yc - grid.step), row(yc), row(yc + grid.step)]
+    }
+
+    /// Non-maximum suppression and refinement along sample row `yc` (`yc >= FIRST + step`).
+    fn suppress_row(&self, grid: Grid, yc: usize, t: f32, sink: &mut dyn FnMut(Feature)) {
+        let (k0, k1) = grid.samples();
+        for (k, layer) in LAYERS.iter().enumerate().take(LAYERS.len() - 1).skip(1) {
+            let own = self.middle_planes(grid, k, yc);
+            let [_, centre, _] = own;
+            let row = centre.get(k0 + 1..k1).unwrap_or(&[]);
+            // Most samples fail the first test: `v > t` also rejects NaN and [`BELOW`].
+            for (i, &v) in (k0 + 1..).zip(row).filter(|&(_, &v)| v > t) {
+                let Some(own_plane) = plane(&own, i) else { continue };
+                if !plane_below(v, &own_plane, 1) {
                     continue;
                 }
-                let Some(cube) = gather(&planes, i) else { continue };
-                let size = sizes.get(m).copied().unwrap_or(0);
-                let Some(f) = candidate(&cube, threshold, oct, i, yc, size) else { continue };
-                let taps = Taps::new(&*self.integral, size, yc);
-                sink(Feature { laplacian_positive: taps.laplacian_positive(i * s), ..f });
+                let at = (i, yc);
+                // The held neighbour layer first: it is cheaper than one evaluated on demand.
+                let (below, above) = if k == 1 {
+                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
+                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
+                    (below, above)
+                } else {
+                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
+                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
+                    (below, above)
+                };
+                // Refinement reads every value: replace the ones not computed by exact ones.
+                let Some(own_plane) = self.exact(own_plane, layer, grid.step, at, true) else {
+                    continue;
+                };
+                let Some(f) = candidate(&[below, own_plane, above], t, grid, i, yc, layer) else {
+                    continue;
+                };
+                let x = i * grid.step;
+                let Some(lap) = laplacian_positive_at(&*self.integral, layer, x, yc) else {
+                    continue;
+                };
+                sink(Feature { laplacian_positive: lap, ..f });
             }
         }
     }
-}
 
-/// The 3x3x3 cube around column `i` of three layers' three rows.
-pub(super) fn gather(planes: &[[&[f32]; 3]; 3], i: usize) -> Option<Cube> {
-    let mut cube: Cube = [[[0.0; 3]; 3]; 3];
-    for (dst_plane, plane) in cube.iter_mut().zip(planes) {
-        for (dst_row, row) in dst_plane.iter_mut().zip(plane) {
-            dst_row.copy_from_slice(row.get(i.checked_sub(1)?..=i + 1)?);
+    /// The exact 3x3 responses of layer `k` around sample `(i, yc)`, the cube's scale index `s`
+    /// (0 below the centre's layer, 2 above), if none keeps `v` from being the maximum (see
+    /// [`is_maximum`]): from the held rows for a middle layer, evaluated for an outer one.
+    fn neighbour(
+        &self,
+        grid: Grid,
+        k: usize,
+        s: usize,
+        (i, yc): (usize, usize),
+        v: f32,
+    ) -> Option<[[f32; 3]; 3]> {
+        let layer = LAYERS.get(k)?;
+        if k == 0 || k + 1 == LAYERS.len() {
+            return self.outer_plane(layer, grid.step, s, (i, yc), v);
         }
+        let p = plane(&self.middle_planes(grid, k, yc), i)?;
+        if !plane_below(v, &p, s) {
+            return None;
+        }
+        self.exact(p, layer, grid.step, (i, yc), false)
     }
-    Some(cube)
+
+    /// `plane`, the 3x3 responses of `layer` around sample `(i, yc)`, with [`BELOW`] replaced
+    /// by the exact response where refinement reads it: everywhere in the candidate's own layer
+    /// (`corners`), the centre and its four neighbours in the layers below and above.
+    fn exact(
+        &self,
+        mut plane: [[f32; 3]; 3],
+        layer: &Layer,
+        step: usize,
+        (i, yc): (usize, usize),
+        corners: bool,
+    ) -> Option<[[f32; 3]; 3]> {
+        for (dy, row) in plane.iter_mut().enumerate() {
+            for (dx, r) in row.iter_mut().enumerate() {
+                if *r == BELOW && (corners || dx == 1 || dy == 1) {
+                    let (x, y) = ((i + dx) * step, yc + dy * step);
+                    *r = response_at(&*self.integral, layer, x.checked_sub(step)?, y - step)?;
+                }
+            }
+        }
+        Some(plane)
+    }
+
+    /// The 3x3 responses of `layer` around sample `(i, yc)`, evaluated from the integral rows, at
+    /// scale index `s` of the cube (0 below the centre's layer, 2 above); `None` as soon as one
+    /// keeps `v` from being the maximum (see [`is_maximum`]). The centre goes first: it is the
+    /// one most likely to be larger.
+    fn outer_plane(
+        &self,
+        layer: &Layer,
+        step: usize,
+        s: usize,
+        (i, yc): (usize, usize),
+        v: f32,
+    ) -> Option<[[f32; 3]; 3]> {
+        const ORDER: [(usize, usize); 9] =
+            [(1, 1), (0, 1), (1, 0), (1, 2), (2, 1), (0, 0), (0, 2), (2, 0), (2, 2)];
+        let mut p = [[0.0; 3]; 3];
+        for (dy, dx) in ORDER {
+            let y = (yc + dy * step).checked_sub(step)?;
+            let x = ((i + dx) * step).checked_sub(step)?;
+            let r = response_at(&*self.integral, layer, x, y)?;
+            // Layers below the centre's precede it (must be smaller), layers above follow.
+            if r > v || (r == v && s == 0) {
+                return None;
+            }
+            *p.get_mut(dy)?.get_mut(dx)? = r;
+        }
+        Some(p)
+    }
 }
 
-/// The refined feature of a cube centred on sample `(i, yc)` of layer size `size` in octave `o`,
-/// if it is a strict local maximum above `threshold` whose quadratic fit stays within half a
-/// sample. The Laplacian sign is left `false` for the caller to fill.
+/// The 3x3 block around sample `i` of three response rows.
+pub(super) fn plane(rows: &[&[f32]; 3], i: usize) -> Option<[[f32; 3]; 3]> {
+    let mut p = [[0.0; 3]; 3];
+    for (dst, row) in p.iter_mut().zip(rows) {
+        dst.copy_from_slice(row.get(i.checked_sub(1)?..=i + 1)?);
+    }
+    Some(p)
+}
+
+/// The refined feature of a cube centred on sample `(i, yc)` of `layer` in the level of `grid`,
+/// in image coordinates, if it is a strict local maximum above `threshold` whose quadratic fit
+/// stays within one sample. The Laplacian sign is left `false` for the caller to fill.
 pub(super) fn candidate(
     cube: &Cube,
     threshold: f32,
-    oct: &Octave,
+    grid: Grid,
     i: usize,
     yc: usize,
-    size: usize,
+    layer: &Layer,
 ) -> Option<Feature> {
-    if !is_strict_maximum(cube, threshold) {
+    if !is_maximum(cube, threshold) {
         return None;
     }
     let [ox, oy, os] = refine(cube)?;
-    let s = oct.step as f32;
-    let size_step = oct.size_step() as f32;
+    let s = grid.step as f32;
+    let size_step = (LEVEL_FILTER_SIZES[1] - LEVEL_FILTER_SIZES[0]) as f32;
+    let size = layer.size as f32 + os * size_step;
     Some(Feature {
-        x: (i as f32 + ox) * s,
-        y: yc as f32 + oy * s,
-        scale: sigma_of_size(size as f32 + os * size_step),
+        x: grid.to_image((i as f32 + ox) * s),
+        y: grid.to_image(yc as f32 + oy * s),
+        scale: sigma_of_size(size * grid.factor()),
         response: cube[1][1][1],
         laplacian_positive: false,
     })

@@ -1,35 +1,37 @@
 //! Known-answer tests of the Fast-Hessian detector, and the full-frame reference that the
+//! strip-wise detector must reproduce bit for bit.
 //!
 //! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
-//! strip-wise detector must reproduce bit for bit.
 
 #![allow(clippy::needless_range_loop)] // index loops read clearer in the reference
 
 extern crate std;
 
 use super::bucket::{GridBuckets, rank};
-use super::filter::{IntegralRows, OCTAVES, Taps};
-use super::hessian::{candidate, gather};
+use super::filter::{
+    FIRST_SAMPLE, IntegralRows, LAYERS, derivatives_at, laplacian_positive_at, response_at,
+};
+use super::hessian::{Grid, candidate, last_sample, plane};
 use super::*;
-use crate::image::GrayView;
+use crate::image::{GrayView, GrayViewMut, downsample_gray_2x};
 use std::boxed::Box;
 use std::vec;
 use std::vec::Vec;
 
-/// A full-frame integral image, as the reference computes it.
+/// A full-frame integral image (modulo 2^16, as the detector's rows), as the reference computes it.
 struct FullIntegral {
-    rows: Vec<Vec<u32>>,
+    rows: Vec<Vec<u16>>,
 }
 
 impl FullIntegral {
     fn new(img: &GrayView<'_>) -> Self {
         let (w, h) = img.size();
-        let mut rows = vec![vec![0u32; w]; h];
+        let mut rows = vec![vec![0u16; w]; h];
         for y in 0..h {
-            let mut acc = 0u32;
+            let mut acc = 0u16;
             for x in 0..w {
-                acc += u32::from(img.get(x, y).unwrap());
-                rows[y][x] = acc + if y > 0 { rows[y - 1][x] } else { 0 };
+                acc = acc.wrapping_add(u16::from(img.get(x, y).unwrap()));
+                rows[y][x] = acc.wrapping_add(if y > 0 { rows[y - 1][x] } else { 0 });
             }
         }
         Self { rows }
@@ -37,47 +39,52 @@ impl FullIntegral {
 }
 
 impl IntegralRows for FullIntegral {
-    fn row(&self, y: usize) -> &[u32] {
+    fn row(&self, y: usize) -> &[u16] {
         &self.rows[y]
     }
 }
 
-/// Every candidate of a full-frame computation: all responses of all layers first, then NMS.
-fn reference_candidates(img: &GrayView<'_>, params: &HessianParams) -> Vec<Feature> {
+/// Every candidate of one level, computed on the whole level image: all responses of all four
+/// layers first, then NMS.
+fn level_candidates(img: &GrayView<'_>, level: usize, threshold: f32, out: &mut Vec<Feature>) {
     let (w, h) = img.size();
+    let Some(grid) = Grid::new(level, w, h) else { return };
+    let last_y = last_sample(h, grid.step).unwrap();
     let ii = FullIntegral::new(img);
+    let s = grid.step;
+    // resp[layer][y / s][x / s]
+    let mut resp = vec![vec![vec![0f32; w / s + 1]; h / s + 1]; LAYERS.len()];
+    for (layer, spec) in LAYERS.iter().enumerate() {
+        for y in (FIRST_SAMPLE..=last_y).step_by(s) {
+            for x in (FIRST_SAMPLE..=grid.last_x).step_by(s) {
+                resp[layer][y / s][x / s] = response_at(&ii, spec, x, y).unwrap();
+            }
+        }
+    }
+    for yc in (FIRST_SAMPLE + s..last_y).step_by(s) {
+        for m in 1..LAYERS.len() - 1 {
+            let j = yc / s;
+            let rows = |l: usize| [&resp[l][j - 1][..], &resp[l][j][..], &resp[l][j + 1][..]];
+            for i in FIRST_SAMPLE / s + 1..grid.last_x / s {
+                let cube = [rows(m - 1), rows(m), rows(m + 1)].map(|r| plane(&r, i).unwrap());
+                if let Some(f) = candidate(&cube, threshold, grid, i, yc, &LAYERS[m]) {
+                    let lap = laplacian_positive_at(&ii, &LAYERS[m], i * s, yc).unwrap();
+                    out.push(Feature { laplacian_positive: lap, ..f });
+                }
+            }
+        }
+    }
+}
+
+/// Every candidate of a full-frame computation of both levels.
+fn reference_candidates(img: &GrayView<'_>, params: &HessianParams) -> Vec<Feature> {
     let mut out = Vec::new();
-    for oct in OCTAVES.iter().take(usize::from(params.octaves)) {
-        let (s, half, first) = (oct.step, oct.half(), oct.first_sample());
-        if w < half + 1 + first || h < half + 1 + first {
-            continue;
-        }
-        let (last_x, last_y) = ((w - 1 - half) / s * s, (h - 1 - half) / s * s);
-        // responses[layer][y / s][x / s]
-        let mut resp = vec![vec![vec![0f32; w / s + 1]; h / s + 1]; 4];
-        for (layer, &size) in oct.sizes.iter().enumerate() {
-            for y in (first..=last_y).step_by(s) {
-                let taps = Taps::new(&ii, size, y);
-                for x in (first..=last_x).step_by(s) {
-                    resp[layer][y / s][x / s] = taps.response(x);
-                }
-            }
-        }
-        for yc in (first + s..last_y).step_by(s) {
-            for m in 1..3 {
-                let j = yc / s;
-                let rows = |l: usize| [&resp[l][j - 1][..], &resp[l][j][..], &resp[l][j + 1][..]];
-                let planes = [rows(m - 1), rows(m), rows(m + 1)];
-                for i in first / s + 1..last_x / s {
-                    let cube = gather(&planes, i).unwrap();
-                    let size = oct.sizes[m];
-                    if let Some(f) = candidate(&cube, params.threshold, oct, i, yc, size) {
-                        let lap = Taps::new(&ii, size, yc).laplacian_positive(i * s);
-                        out.push(Feature { laplacian_positive: lap, ..f });
-                    }
-                }
-            }
-        }
+    level_candidates(img, 0, params.threshold, &mut out);
+    let (w, h) = (img.width() / 2, img.height() / 2);
+    if params.octaves >= 2 && w > 0 && h > 0 {
+        let mut half = vec![0u8; w * h];
+        downsample_gray_2x(img, &mut GrayViewMut::packed(&mut half, w, h).unwrap()).unwrap();
+        level_candidates(&GrayView::packed(&half, w, h).unwrap(), 1, params.threshold, &mut out);
     }
     out
 }
@@ -122,13 +129,60 @@ fn texture(w: usize, h: usize, seed: u32) -> Vec<u8> {
     (0..w * h).map(|k| blocks[(k / w / 4) * (w / 4 + 1) + (k % w) / 4]).collect()
 }
 
+/// Pixel sum of rows `y0..=y1`, columns `x0..=x1`, in 64-bit integers.
+fn brute_box(img: &GrayView<'_>, (x0, x1): (usize, usize), (y0, y1): (usize, usize)) -> i64 {
+    (y0..=y1)
+        .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+        .map(|(x, y)| i64::from(img.get(x, y).unwrap()))
+        .sum()
+}
+
+#[test]
+fn lobe_sums_modulo_2_16_are_exact_even_on_saturated_images() {
+    // Saturated (255) blocks make the largest lobes reach their maximum sums; the texture around
+    // them gives every sign of every derivative.
+    let (w, h) = (120, 100);
+    let mut data = texture(w, h, 13);
+    for y in 20..70 {
+        for x in 30..90 {
+            if x < 60 || (x / 9 + y / 11) % 3 != 0 {
+                data[y * w + x] = 255;
+            }
+        }
+    }
+    let img = GrayView::packed(&data, w, h).unwrap();
+    let ii = FullIntegral::new(&img);
+    for layer in &LAYERS {
+        let (l, b) = (layer.size / 3, (layer.size - 1) / 2);
+        let h2 = (l - 1) / 2;
+        for y in (b + 1..h - b).step_by(3) {
+            for x in (b + 1..w - b).step_by(3) {
+                let rows_xx = (y - (l - 1), y + (l - 1));
+                let dxx = brute_box(&img, (x - b, x + b), rows_xx)
+                    - 3 * brute_box(&img, (x - h2, x + h2), rows_xx);
+                let cols_yy = (x - (l - 1), x + (l - 1));
+                let dyy = brute_box(&img, cols_yy, (y - b, y + b))
+                    - 3 * brute_box(&img, cols_yy, (y - h2, y + h2));
+                let (up, down, left, right) =
+                    ((y - l, y - 1), (y + 1, y + l), (x - l, x - 1), (x + 1, x + l));
+                let dxy = brute_box(&img, left, up) + brute_box(&img, right, down)
+                    - brute_box(&img, right, up)
+                    - brute_box(&img, left, down);
+                let got = derivatives_at(&ii, layer, x, y).unwrap();
+                let got = (i64::from(got.0), i64::from(got.1), i64::from(got.2));
+                assert_eq!(got, (dxx, dyy, dxy), "size {} at ({x}, {y})", layer.size);
+            }
+        }
+    }
+}
+
 /// The workspace is built at compile time, so it can live in a `static` (no stack copy).
 static _CONST_BUILT: QvgaHessianDetector = QvgaHessianDetector::new();
 
 #[test]
 fn workspace_sizes_are_as_documented() {
-    assert_eq!(core::mem::size_of::<QvgaHessianDetector>(), 103_272);
-    assert_eq!(core::mem::size_of::<VgaHessianDetector>(), 194_152);
+    assert_eq!(core::mem::size_of::<QvgaHessianDetector>(), 36_712);
+    assert_eq!(core::mem::size_of::<VgaHessianDetector>(), 61_032);
 }
 
 /// Measured: det(H) of SURF's box filters peaks on a Gaussian blob of standard deviation `s` at a
