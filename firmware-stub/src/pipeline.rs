@@ -48,13 +48,30 @@ impl Pipeline {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
     ) -> Result<PoseMessage, FrontendError> {
+        let pose = self.track(frame, cam)?;
+        self.step_backend(cam);
+        Ok(pose)
+    }
+
+    /// The first half of [`Pipeline::process`]: the front end on the frame. [`run_frame`] calls
+    /// the halves itself to time them apart; anything else calls `process`, so the back-end step
+    /// can never be skipped or doubled (the host replay's schedule, hence its bits, depend on it).
+    fn track(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Result<PoseMessage, FrontendError> {
         let index = self.next_index;
         self.next_index = self.next_index.saturating_add(1);
         let result = self.slam.process(frame, cam)?;
+        Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result))
+    }
+
+    /// The second half of [`Pipeline::process`]: the back end for [`BACKEND_QUOTA`] units.
+    fn step_backend(&mut self, cam: &PinholeCamera) {
         if self.slam.step_backend(cam, BACKEND_QUOTA).is_err() {
             self.note_fault();
         }
-        Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result))
     }
 
     /// The index the next frame gets.
@@ -109,6 +126,9 @@ pub trait TickClock {
 /// [`CostMessage`] to `sink` (or a [`FaultMessage`] when the source fails or the pipeline rejects
 /// the frame; the caller may go on with the next frame either way).
 ///
+/// The cost message times four stages with `clock`: acquiring the frame, the front end, the
+/// back-end step after it, and sending the pose (its own cost message is not counted).
+///
 /// # Errors
 /// The sink's error (the link itself failed).
 pub fn run_frame<S, T, C>(
@@ -130,17 +150,20 @@ where
         Ok(None) => return Ok(FrameOutcome::End),
         Ok(Some(frame)) => {
             let t1 = clock.now();
-            match pipeline.process(&frame, cam) {
+            match pipeline.track(&frame, cam) {
                 Ok(pose) => {
                     let t2 = clock.now();
-                    sink.send(&Message::Pose(pose))?;
+                    pipeline.step_backend(cam);
                     let t3 = clock.now();
+                    sink.send(&Message::Pose(pose))?;
+                    let t4 = clock.now();
                     let cost = CostMessage {
                         frame_index,
                         unit: C::UNIT,
                         acquire_ticks: t1.wrapping_sub(t0),
-                        process_ticks: t2.wrapping_sub(t1),
-                        report_ticks: t3.wrapping_sub(t2),
+                        frontend_ticks: t2.wrapping_sub(t1),
+                        backend_ticks: t3.wrapping_sub(t2),
+                        report_ticks: t4.wrapping_sub(t3),
                     };
                     sink.send(&Message::Cost(cost))?;
                     return Ok(FrameOutcome::Processed { pose, cost });
@@ -246,7 +269,9 @@ mod tests {
             (pose.frame_index, pose.timestamp_s, pose.state),
             (0, 1.0, TrackingState::Initializing)
         );
-        assert_eq!((cost.acquire_ticks, cost.process_ticks, cost.report_ticks), (10, 10, 10));
+        let ticks =
+            (cost.acquire_ticks, cost.frontend_ticks, cost.backend_ticks, cost.report_ticks);
+        assert_eq!(ticks, (10, 10, 10, 10));
         // The source fails: a fault, and the frame keeps its index.
         let fault = FaultMessage { frame_index: 1, code: FaultCode::FrameSource, detail: 5 };
         assert_eq!(step(), Ok(FrameOutcome::Fault(fault)));

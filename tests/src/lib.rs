@@ -1,4 +1,8 @@
-//! Shared helpers for the workspace integration tests under `tests/tests/`.
+//! Shared helpers for the workspace integration tests under `tests/tests/`, and the list of core
+//! structures whose size `memory-budget.md` states ([`structures`], also read by `cargo xtask
+//! budgets`).
+
+pub mod structures;
 
 use std::path::PathBuf;
 

@@ -47,6 +47,7 @@ use anyhow::{Context, Result, bail};
 use serde_json::{Value, json};
 
 use crate::ci::{SEVEN_SCENES, root};
+use crate::stats::{Stats, thousands};
 
 /// The front end's stages: `(name, pattern)`, in print order. This table is the one place to
 /// edit when front-end functions are renamed, added or split.
@@ -464,44 +465,6 @@ impl FrameCost {
     }
 }
 
-/// Order statistics of instructions per frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Stats {
-    median: u64,
-    p90: u64,
-    p99: u64,
-    max: u64,
-    mean: f64,
-}
-
-impl Stats {
-    /// Of a non-empty set of values (0 everywhere when empty).
-    fn of(values: &[u64]) -> Self {
-        let mut sorted = values.to_vec();
-        sorted.sort_unstable();
-        let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len().max(1) as f64;
-        Self {
-            median: nearest_rank(&sorted, 50),
-            p90: nearest_rank(&sorted, 90),
-            p99: nearest_rank(&sorted, 99),
-            max: sorted.last().copied().unwrap_or(0),
-            mean,
-        }
-    }
-
-    fn to_json(self) -> Value {
-        json!({"median": self.median, "p90": self.p90, "p99": self.p99, "max": self.max,
-               "mean": self.mean})
-    }
-}
-
-/// The `p`-th percentile of ascending `sorted` by nearest rank: the value of rank
-/// `ceil(p * n / 100)` (from 1, at least 1); 0 when empty.
-fn nearest_rank(sorted: &[u64], p: usize) -> u64 {
-    let rank = (p * sorted.len()).div_ceil(100).max(1);
-    sorted.get(rank - 1).copied().unwrap_or(0)
-}
-
 /// The statistics of a run.
 #[derive(Debug)]
 struct Summary {
@@ -605,19 +568,6 @@ fn to_json(opts: &Options, summary: &Summary, frames: &[FrameCost]) -> Value {
     })
 }
 
-/// `1234567` as `1,234,567`.
-fn thousands(value: u64) -> String {
-    let digits = value.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -716,27 +666,6 @@ totals: 100
     #[test]
     fn undefined_name_is_an_error() {
         assert!(Profile::parse("events: Ir\nfn=(7)\n1 5\n").is_err());
-    }
-
-    #[test]
-    fn nearest_rank_percentiles() {
-        let v: Vec<u64> = (1..=10).collect();
-        assert_eq!(nearest_rank(&v, 50), 5);
-        assert_eq!(nearest_rank(&v, 90), 9);
-        assert_eq!(nearest_rank(&v, 99), 10);
-        assert_eq!(nearest_rank(&[7], 50), 7);
-        assert_eq!(nearest_rank(&[], 50), 0);
-        let s = Stats::of(&[3, 1, 2]);
-        assert_eq!((s.median, s.p90, s.max), (2, 3, 3));
-        assert!((s.mean - 2.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn thousands_separators() {
-        assert_eq!(thousands(0), "0");
-        assert_eq!(thousands(999), "999");
-        assert_eq!(thousands(1000), "1,000");
-        assert_eq!(thousands(1_185_000_000), "1,185,000,000");
     }
 
     #[test]

@@ -89,6 +89,7 @@ pub fn run_all() -> Result<()> {
     })?;
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
+    step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
     step("7-Scenes odometry replay, accuracy bar", replay_seven_scenes)?;
     step("demo", || {
         cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])
@@ -148,9 +149,25 @@ fn firmware_replay() -> Result<()> {
     let opts = crate::replay::ReplayOptions {
         dataset: root().join(SEVEN_SCENES),
         max_frames: FIRMWARE_REPLAY_FRAMES,
-        out: root().join("target").join("ci").join("firmware-replay"),
+        out: firmware_replay_dir(),
     };
     crate::replay::run(&root(), &opts)
+}
+
+/// Where CI's firmware replay writes (`cost.json` among the rest), read again by [`budgets`].
+fn firmware_replay_dir() -> PathBuf {
+    root().join("target").join("ci").join("firmware-replay")
+}
+
+/// The budgets of `memory-budget.md` on the firmware replay's `cost.json`, without a second QEMU
+/// run; the figures as JSON in `target/ci/budgets.json`.
+fn budgets() -> Result<()> {
+    let opts = crate::budgets::Options {
+        from: Some(firmware_replay_dir()),
+        json: Some(root().join("target").join("ci").join("budgets.json")),
+        ..crate::budgets::Options::new(&root())
+    };
+    crate::budgets::run_with(&root(), &opts)
 }
 
 /// The front end's accuracy bar on 7-Scenes (issue 3): ATE RMSE after SE(3) alignment, metres.

@@ -4,17 +4,28 @@
 //! Subcommands:
 //! - `ci`: formatting, clippy (host and thumb), docs, host tests, the no-allocator thumb build of
 //!   core and firmware (both binaries), the firmware in QEMU checked pose by pose against the host
-//!   replay, and replays of the real and synthetic data through the host simulator.
+//!   replay, the budgets of `memory-budget.md` on that same QEMU run, and replays of the real and
+//!   synthetic data through the host simulator.
 //! - `firmware-replay DATASET [--max-frames N] [--out DIR]`: only the QEMU comparison (default 60
 //!   frames, `target/xtask/firmware-replay`); see `replay.rs`.
+//! - `budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] [--write]
+//!   [--strict]`: RAM, flash, peak stack and instructions per frame of the firmware (QEMU's
+//!   Cortex-M4F) against the budgets of `memory-budget.md`: prints budget vs measured, fails on
+//!   a figure over its ceiling (over its bar when it has no ceiling; over any bar with
+//!   `--strict`); `--write` regenerates the file's figures; see `budgets.rs`.
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
 
 mod bench;
+mod budget_doc;
+mod budget_tables;
+mod budgets;
 mod ci;
+mod cost;
 mod firmware;
 mod replay;
+mod stats;
 
 use std::process::ExitCode;
 
@@ -27,9 +38,12 @@ fn main() -> ExitCode {
             replay::ReplayOptions::parse(&args[1..], out).and_then(|o| replay::run(&ci::root(), &o))
         }
         Some("bench-frontend") => bench::run(&args[1..]),
+        Some("budgets") => budgets::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--max-frames N] [--out DIR] | \
+                 budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] \
+                 [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]>"
             );
             return ExitCode::from(2);

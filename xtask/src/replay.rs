@@ -12,7 +12,9 @@
 //!    frame by frame: timestamp, translation and quaternion as f32 bits, state,
 //!    flags, inliers and matches.
 //! 5. Prints one line (`bit-identical` with the frame count, or the first differing frame and
-//!    field) and writes into DIR: `cost.json` (per-frame SysTick instruction counts), the two
+//!    field) and writes into DIR: `cost.json` (per-frame SysTick instruction counts by stage:
+//!    acquire, front end, back-end step, report; the board's final status with its peak stack;
+//!    see `cost.rs`; `cargo xtask budgets --from DIR` checks the budgets on it), the two
 //!    trajectories (`firmware_trajectory.txt`, `host_trajectory.txt`), the UART capture
 //!    (`uart.bin`) and the decoded firmware log (`firmware.log`). `frames.fsrs` (~0.9 MB a frame)
 //!    is removed after a bit-identical run and kept when something differs.
@@ -27,7 +29,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
-use ferroslam_core::wire::{CostMessage, Message, PoseFlags, PoseMessage, TrackingState};
+use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::commands::datapath::{OdometryRun, TrackMode, run_odometry};
 use ferroslam_sim::dataset::{Dataset, DatasetOptions};
@@ -35,7 +37,9 @@ use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
 
+use crate::cost::FirmwareRun;
 use crate::firmware::{self, decode_defmt, elf_sections, flash_and_ram};
+use crate::stats::millions;
 
 /// Frames compared when `--max-frames` is not given.
 pub const DEFAULT_FRAMES: usize = 60;
@@ -139,12 +143,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
-    let costs: Vec<CostMessage> = capture
-        .messages
-        .iter()
-        .filter_map(|m| if let Message::Cost(c) = m { Some(*c) } else { None })
-        .collect();
-    let summary = write_cost_json(&out, &elf, &capture, &costs)?;
+    let summary = write_cost_json(&out, &opts.dataset, &elf, &capture)?;
 
     match first_difference(&fw_poses, &host) {
         None => {
@@ -281,94 +280,38 @@ fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &OdometryRun) -> Res
     Ok(())
 }
 
-/// Median and maximum of `v` (0 when empty).
-fn median_max(v: &[u64]) -> (u64, u64) {
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    (s.get(s.len() / 2).copied().unwrap_or(0), s.last().copied().unwrap_or(0))
-}
-
-/// Instructions per tick of `c`'s unit (0 for core cycles).
-fn per_tick(c: &CostMessage) -> u64 {
-    match c.unit {
-        ferroslam_core::wire::TickUnit::Instructions { per_tick } => u64::from(per_tick),
-        ferroslam_core::wire::TickUnit::CoreCycle => 0,
-    }
-}
-
-/// One frame's cost as a `cost.json` entry.
-fn cost_entry(c: &CostMessage) -> serde_json::Value {
-    let k = per_tick(c);
-    json!({
-        "frame_index": c.frame_index,
-        "acquire_ticks": c.acquire_ticks,
-        "process_ticks": c.process_ticks,
-        "report_ticks": c.report_ticks,
-        "acquire_instructions": u64::from(c.acquire_ticks) * k,
-        "process_instructions": u64::from(c.process_ticks) * k,
-        "report_instructions": u64::from(c.report_ticks) * k,
-        "total_instructions": c.total_instructions(),
-    })
-}
-
-/// Writes `cost.json` and returns a one-line summary of the cost figures.
-fn write_cost_json(
-    out: &Path,
-    elf: &Path,
-    capture: &Capture,
-    costs: &[CostMessage],
-) -> Result<String> {
-    let per_frame: Vec<_> = costs.iter().map(cost_entry).collect();
-    let process: Vec<u64> =
-        costs.iter().map(|c| u64::from(c.process_ticks) * per_tick(c)).collect();
-    let total: Vec<u64> = costs.iter().filter_map(CostMessage::total_instructions).collect();
-    let (process_median, process_max) = median_max(&process);
-    let (total_median, total_max) = median_max(&total);
-    let status = capture.messages.iter().rev().find_map(|m| match m {
-        Message::Status(s) => Some(*s),
-        _ => None,
-    });
+/// Writes `cost.json` (see `cost.rs`) and returns a one-line summary of its figures.
+fn write_cost_json(out: &Path, dataset: &Path, elf: &Path, capture: &Capture) -> Result<String> {
+    let run = FirmwareRun::from_capture(capture, dataset, elf)?;
     let sections = elf_sections(elf).unwrap_or_default();
     let (flash, ram) = flash_and_ram(&sections);
-    let stack = status.map_or(0, |s| s.stack_peak_bytes);
-    let doc = json!({
-        "unit": "instructions (QEMU mps2-an386, -icount shift=0: SysTick ticks x 40)",
-        "instructions_per_tick": 40,
-        "frames": costs.len(),
-        "process_instructions_median": process_median,
-        "process_instructions_max": process_max,
-        "total_instructions_median": total_median,
-        "total_instructions_max": total_max,
+    let stack = run.status.stack_peak_bytes;
+    let extra = json!({
         "firmware": {
-            "elf": elf.display().to_string(),
             "flash_bytes": flash,
             "static_ram_bytes": ram,
             "stack_peak_bytes": stack,
             "sections": sections.iter().map(|(n, s)| json!({"name": n, "bytes": s})).collect::<Vec<_>>(),
         },
-        "status": status.map(|s| json!({
-            "frames": s.frames, "tracked_frames": s.tracked_frames, "lost_frames": s.lost_frames,
-            "keyframes": s.keyframes, "recoveries": s.recoveries, "faults": s.faults,
-            "state_bytes": s.state_bytes, "stack_peak_bytes": s.stack_peak_bytes,
-        })),
         "uart": {
             "bytes": capture.stats.bytes_received,
             "frames_decoded": capture.stats.frames_decoded,
             "frames_dropped": capture.stats.frames_dropped,
             "bytes_skipped": capture.stats.bytes_skipped,
         },
-        "per_frame": per_frame,
     });
     let path = out.join("cost.json");
-    fs::write(&path, serde_json::to_string_pretty(&doc)? + "\n")
+    fs::write(&path, serde_json::to_string_pretty(&run.to_json(extra))? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
-    let m = |v: u64| v as f64 / 1e6;
+    let (pipeline, frontend, backend) =
+        (run.stats("pipeline"), run.stats("frontend"), run.stats("backend_step"));
     Ok(format!(
-        "instructions per frame median {:.1} M (pipeline {:.1} M), max {:.1} M; static RAM {ram} B \
-         + peak stack {stack} B = {} B of 524288; cost.json in {}",
-        m(total_median),
-        m(process_median),
-        m(total_max),
+        "pipeline instructions per frame median {} (front end {}, back-end step {}), max {}; \
+         static RAM {ram} B + peak stack {stack} B = {} B; cost.json in {}",
+        millions(pipeline.median),
+        millions(frontend.median),
+        millions(backend.median),
+        millions(pipeline.max),
         ram + u64::from(stack),
         out.display()
     ))

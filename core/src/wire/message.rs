@@ -190,6 +190,10 @@ pub enum TickUnit {
 }
 
 /// What one frame cost, by stage, in [`TickUnit`]s.
+///
+/// Schema version 2 split version 1's `process_ticks` into the front end
+/// ([`CostMessage::frontend_ticks`]) and the back-end step that follows it
+/// ([`CostMessage::backend_ticks`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CostMessage {
@@ -199,19 +203,22 @@ pub struct CostMessage {
     pub unit: TickUnit,
     /// Acquiring the frame: reading the sensor (or file) and downsampling it to the profile.
     pub acquire_ticks: u32,
-    /// The pipeline (today the odometry front end) on the frame.
-    pub process_ticks: u32,
+    /// The front end on the frame (tracking, and the keyframe decision and insertion).
+    pub frontend_ticks: u32,
+    /// The back-end step after the frame (one bounded quota of bundle-adjustment work).
+    pub backend_ticks: u32,
     /// Encoding and writing the frame's pose message.
     pub report_ticks: u32,
 }
 
 impl CostMessage {
-    /// Instructions of the three stages together, when the unit is instructions.
+    /// Instructions of the four stages together, when the unit is instructions.
     pub fn total_instructions(&self) -> Option<u64> {
         match self.unit {
             TickUnit::Instructions { per_tick } => {
                 let ticks = u64::from(self.acquire_ticks)
-                    + u64::from(self.process_ticks)
+                    + u64::from(self.frontend_ticks)
+                    + u64::from(self.backend_ticks)
                     + u64::from(self.report_ticks);
                 Some(ticks * u64::from(per_tick))
             }

@@ -55,7 +55,8 @@ fn all_kinds() -> [Message; 4] {
             frame_index: 3,
             unit: TickUnit::Instructions { per_tick: 40 },
             acquire_ticks: 100_000,
-            process_ticks: u32::MAX,
+            frontend_ticks: u32::MAX,
+            backend_ticks: 7,
             report_ticks: 0,
         }),
         Message::Fault(FaultMessage { frame_index: 9, code: FaultCode::FrameSource, detail: 3 }),
@@ -120,7 +121,7 @@ fn the_payload_layout_is_version_body_crc() {
     frame.pop();
     let n = cobs::decode_in_place(&mut frame).unwrap();
     let payload = &frame[..n];
-    // version 1, variant Fault = 3, frame_index 1, code Telemetry = 2, detail 2, then the CRC.
+    // the version, variant Fault = 3, frame_index 1, code Telemetry = 2, detail 2, then the CRC.
     assert_eq!(&payload[..5], &[SCHEMA_VERSION, 3, 1, 2, 2]);
     assert_eq!(payload[5..].to_vec(), crc32(&payload[..5]).to_le_bytes().to_vec());
     // The published check value of CRC-32/ISO-HDLC.
@@ -235,8 +236,9 @@ fn a_run_without_delimiter_longer_than_any_frame_is_dropped() {
 #[test]
 fn an_unknown_version_is_counted_and_skipped() {
     let (frames, msgs) = stream();
-    // A well-formed frame of schema version 2: right CRC, other version.
-    let mut payload = std::vec![2u8, 0xDE, 0xAD];
+    // A well-formed frame of the next schema version: right CRC, other version.
+    let next = SCHEMA_VERSION + 1;
+    let mut payload = std::vec![next, 0xDE, 0xAD];
     let crc = crc32(&payload);
     payload.extend_from_slice(&crc.to_le_bytes());
     let mut future = std::vec![0u8; MAX_ENCODED_FRAME];
@@ -246,14 +248,14 @@ fn an_unknown_version_is_counted_and_skipped() {
     let bytes = [frames[0].clone(), future.clone(), frames[1].clone()].concat();
     let (ok, bad, s) = decode_all(&bytes);
     assert_eq!(ok, [msgs[0], msgs[1]]);
-    assert_eq!(bad, [FrameError::UnknownVersion { found: 2 }]);
+    assert_eq!(bad, [FrameError::UnknownVersion { found: next }]);
     assert_eq!((s.frames_unknown_version, s.frames_dropped), (1, 0));
     assert_eq!(s.bytes_skipped, future.len() as u64);
 }
 
 #[test]
 fn a_valid_crc_over_a_bad_body_is_dropped() {
-    // Version 1, variant 9 (no such message), right CRC.
+    // This version, variant 9 (no such message), right CRC.
     let mut payload = std::vec![SCHEMA_VERSION, 9, 1];
     let crc = crc32(&payload);
     payload.extend_from_slice(&crc.to_le_bytes());
@@ -263,4 +265,19 @@ fn a_valid_crc_over_a_bad_body_is_dropped() {
     // Too short to hold a CRC.
     let mut short = [3u8, 1, 1];
     assert_eq!(decode_frame(&mut short), Err(FrameError::TooShort { len: 2 }));
+}
+
+#[test]
+fn a_cost_adds_its_stages_up() {
+    let c = CostMessage {
+        frame_index: 0,
+        unit: TickUnit::Instructions { per_tick: 40 },
+        acquire_ticks: 1,
+        frontend_ticks: 10,
+        backend_ticks: 100,
+        report_ticks: 1000,
+    };
+    assert_eq!(c.total_instructions(), Some(44_440));
+    let cycles = CostMessage { unit: TickUnit::CoreCycle, ..c };
+    assert_eq!(cycles.total_instructions(), None);
 }

@@ -108,14 +108,16 @@ fn run(store: &'static mut HalfFrame, pipeline: &'static mut Pipeline) -> Result
                 .map_err(Failure::Link)?;
         match outcome {
             FrameOutcome::Processed { pose, cost } => defmt::info!(
-                "frame {}: {} inliers, {} matches, tracked {}, keyframe {}; {} + {} + {} ticks",
+                "frame {}: {} inliers, {} matches, tracked {}, keyframe {}; ticks: acquire {}, \
+                 front end {}, back end {}, report {}",
                 pose.frame_index,
                 pose.inliers,
                 pose.matches,
                 pose.flags.contains(PoseFlags::TRACKED),
                 pose.flags.contains(PoseFlags::KEYFRAME),
                 cost.acquire_ticks,
-                cost.process_ticks,
+                cost.frontend_ticks,
+                cost.backend_ticks,
                 cost.report_ticks
             ),
             FrameOutcome::Fault(f) => defmt::warn!("frame {}: fault {}", f.frame_index, f),

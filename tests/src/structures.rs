@@ -1,0 +1,133 @@
+//! The core structures whose size `memory-budget.md` states: one list, read by the
+//! `memory_budget` test (the file's table must say exactly this) and by `cargo xtask budgets
+//! --write` (which writes the table from it).
+//!
+//! Sizes are `size_of` on the host that runs this (64-bit in CI): views and frames hold a slice
+//! pointer and `usize` fields, so they are smaller on the 32-bit Cortex-M; buffers are the same.
+
+use std::mem::size_of;
+
+use ferroslam_core::backend::{
+    BA_CAMERAS, BA_OBSERVATIONS, BA_POINTS, BA_RIGS, Backend, BoardBundleAdjuster,
+};
+use ferroslam_core::config::capacity::{
+    MAX_FEATURES_PER_FRAME, MAX_KEYFRAMES, MAX_LANDMARKS, MAX_OBSERVATIONS_PER_KEYFRAME,
+    MAX_TRACKED_LANDMARKS,
+};
+use ferroslam_core::config::{
+    Config, QvgaDepthBuffer, QvgaGrayBuffer, VgaDepthBuffer, VgaGrayBuffer,
+};
+use ferroslam_core::features::{Feature, FeatureVec, QvgaHessianDetector, VgaHessianDetector};
+use ferroslam_core::frame::RgbdFrame;
+use ferroslam_core::geometry::{PinholeCamera, Pose};
+use ferroslam_core::image::{DepthView, GrayView};
+use ferroslam_core::map::{BoardMap, KeyFrame, Landmark, Observation};
+use ferroslam_core::system::{QvgaSlam, VgaSlam};
+use ferroslam_core::tracking::sbi::SmallImage;
+use ferroslam_core::tracking::{
+    BoardLocalMap, InlierMask, MotionModel, PoseEstimate, QvgaFrontend, TrackedLandmark,
+    VgaFrontend,
+};
+
+/// One row of the table: a core type, what drives its size, and its `size_of`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Structure {
+    /// The type's path under `ferroslam_core`, e.g. `map::BoardMap`.
+    pub name: &'static str,
+    /// The capacity (or content) that drives its size, for a reader (named capacities are
+    /// printed from their constants, so the text follows them).
+    pub capacity: String,
+    /// `size_of` on this host, bytes.
+    pub bytes: usize,
+}
+
+fn row<T>(name: &'static str, capacity: impl Into<String>) -> Structure {
+    Structure { name, capacity: capacity.into(), bytes: size_of::<T>() }
+}
+
+/// Every core structure the budget file states, in the file's order.
+pub fn core_structures() -> Vec<Structure> {
+    vec![
+        row::<QvgaGrayBuffer>("config::QvgaGrayBuffer", "320 x 240 gray, u8"),
+        row::<QvgaDepthBuffer>("config::QvgaDepthBuffer", "320 x 240 depth, u16"),
+        row::<VgaGrayBuffer>("config::VgaGrayBuffer", "640 x 480 gray, u8"),
+        row::<VgaDepthBuffer>("config::VgaDepthBuffer", "640 x 480 depth, u16"),
+        row::<Config>("config::Config", "profile + tunables"),
+        row::<GrayView<'static>>("image::GrayView", "borrowed: slice + size + stride"),
+        row::<DepthView<'static>>("image::DepthView", "borrowed view + depth scale"),
+        row::<RgbdFrame<'static>>("frame::RgbdFrame", "timestamp + gray and depth views"),
+        row::<PinholeCamera>("geometry::PinholeCamera", "fx, fy, cx, cy, size"),
+        row::<Pose>("geometry::Pose", "`Isometry3<f32>`"),
+        row::<QvgaHessianDetector>(
+            "features::QvgaHessianDetector",
+            "320 px rows: rolling u16 integral ring (32 rows), middle-layer response rows, \
+             bucketing grid",
+        ),
+        row::<VgaHessianDetector>("features::VgaHessianDetector", "the same at 640 px rows"),
+        row::<FeatureVec>(
+            "features::FeatureVec",
+            format!(
+                "`MAX_FEATURES_PER_FRAME` = {MAX_FEATURES_PER_FRAME} features of {} bytes",
+                size_of::<Feature>()
+            ),
+        ),
+        row::<InlierMask>(
+            "tracking::InlierMask",
+            format!("{MAX_FEATURES_PER_FRAME} correspondences, one bit each"),
+        ),
+        row::<PoseEstimate>("tracking::PoseEstimate", "pose, inlier mask, figures"),
+        row::<MotionModel>("tracking::MotionModel", "last two stamped poses"),
+        row::<QvgaFrontend>(
+            "tracking::QvgaFrontend",
+            format!(
+                "detector + local map ({MAX_TRACKED_LANDMARKS} templates) + scratch + small \
+                 images, 320x240"
+            ),
+        ),
+        row::<VgaFrontend>("tracking::VgaFrontend", "the same with the detector at 640 px rows"),
+        row::<TrackedLandmark>(
+            "tracking::TrackedLandmark",
+            "a 16 x 16 template, its anchoring pose, pixel and depth, counters",
+        ),
+        row::<BoardLocalMap>(
+            "tracking::BoardLocalMap",
+            format!("`MAX_TRACKED_LANDMARKS` = {MAX_TRACKED_LANDMARKS} tracked landmarks"),
+        ),
+        row::<SmallImage>(
+            "tracking::sbi::SmallImage",
+            "80 x 60 + 40 x 30 blurred thumbnails (rotation recovery); two per front end",
+        ),
+        row::<Observation>("map::Observation", "landmark id, pixel (1/32 px), depth (1/4 mm)"),
+        row::<Landmark>("map::Landmark", "position, host keyframe, counters"),
+        row::<KeyFrame>(
+            "map::KeyFrame",
+            format!(
+                "pose, time, `MAX_OBSERVATIONS_PER_KEYFRAME` = {MAX_OBSERVATIONS_PER_KEYFRAME} \
+                 observations"
+            ),
+        ),
+        row::<BoardMap>(
+            "map::BoardMap",
+            format!(
+                "`MAX_KEYFRAMES` = {MAX_KEYFRAMES} keyframes, `MAX_LANDMARKS` = {MAX_LANDMARKS} \
+                 landmarks"
+            ),
+        ),
+        row::<BoardBundleAdjuster>(
+            "backend::BoardBundleAdjuster",
+            format!(
+                "the BA workspace: `BA_RIGS` = {BA_RIGS} rigs, `BA_CAMERAS` = {BA_CAMERAS} \
+                 cameras, `BA_POINTS` = {BA_POINTS} points, `BA_OBSERVATIONS` = \
+                 {BA_OBSERVATIONS} observations (local and global BA share it)"
+            ),
+        ),
+        row::<Backend>("backend::Backend", "the BA workspace + the window and segment bookkeeping"),
+        row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end"),
+        row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
+    ]
+}
+
+/// The size of the structure named `name` in [`core_structures`].
+pub fn bytes_of(name: &str) -> Option<usize> {
+    core_structures().into_iter().find(|s| s.name == name).map(|s| s.bytes)
+}

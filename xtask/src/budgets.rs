@@ -1,0 +1,658 @@
+//! `cargo xtask budgets`: RAM, flash, stack and instructions per frame of the firmware against
+//! the budgets of `memory-budget.md`.
+//!
+//! ```text
+//! cargo xtask budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] [--write]
+//!                     [--strict]
+//! ```
+//!
+//! What it measures (profile QVGA, the reference board):
+//! - **Flash and static RAM** of both firmware binaries, from their ELF sections
+//!   (`arm-none-eabi-size -A`): flash = `.vector_table + .text + .rodata + .data` (the `.data`
+//!   load image), static RAM = `.data + .bss + .uninit` plus the H7 regions `.axisram` and
+//!   `.sram123` of `ref-board`. The figure checked is the larger of the two binaries.
+//! - **Peak stack**: painted by the firmware and measured in QEMU (`qemu-mps2`; `ref-board` runs
+//!   the same code), over the whole run. On `ref-board` the stack lives in the 128 KiB DTCM: a
+//!   peak above what the DTCM statics leave fails the run.
+//! - **Instructions per frame** on QEMU's Cortex-M4F (`-icount shift=0`: SysTick ticks x 40),
+//!   median, p99 (nearest rank) and max over the replayed frames, for the front end, the back-end
+//!   step (one fixed quota) and their sum, the pipeline, which the bars are about. Acquiring the
+//!   frame (semihosting reads and the halving to QVGA) and the report are listed apart.
+//! - The `size_of` of the core's structures on the host (`ferroslam_tests::structures`).
+//!
+//! Where the run comes from: `--from DIR` reads `DIR/cost.json` of a `firmware-replay` run (how
+//! `cargo xtask ci` runs QEMU once for both checks; the ELF must be the one that ran, checked by
+//! its hash); otherwise it runs `firmware-replay` itself on `--frames` (default 1000, at least
+//! 200) frames of `--dataset` (default 7-Scenes) into `--out` (default `target/xtask/budgets`),
+//! bit-identical check included.
+//!
+//! How it judges: every budget of the block in `memory-budget.md` has the issue's `bar` and,
+//! where the bar is not met today, a `ceiling` (a regression guard a few percent above the figure
+//! when it was set) with its reason. A figure above its bar is reported `NOT MET (x times the
+//! bar)`; the run fails when a figure exceeds its ceiling, or its bar when it has none, and with
+//! `--strict` when it exceeds any bar. Ceilings and bars change only by hand, in the file.
+//!
+//! `--json FILE` writes every figure (`qvga.static_ram_bytes`, `qvga.insn_per_frame_median`, ...;
+//! VGA with `runs: false` and nulls for what the firmware cannot run) and the checks.
+//! `--write` regenerates the figures of `memory-budget.md` (its generated regions and the
+//! block's `measured` values; never a bar or a ceiling); without it a stale file is reported.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, anyhow, bail};
+use serde_json::{Map, Value, json};
+
+use crate::budget_doc::{self, Budget};
+use crate::ci::{SEVEN_SCENES, root};
+use crate::cost::{FirmwareRun, fnv1a64};
+use crate::firmware::{self, BINARIES};
+use crate::replay::{self, ReplayOptions};
+use crate::stats::{millions, thousands};
+
+/// Frames a run must have for the per-frame figures (the issue's minimum).
+pub const MIN_FRAMES: usize = 200;
+
+/// Frames replayed when no `--from` run is given (all of 7-Scenes, as CI).
+const DEFAULT_FRAMES: usize = 1000;
+
+/// The reference board's DTCM, which holds `ref-board`'s `.data`, `.bss` and stack
+/// (`memory-ref-board.x`, region `RAM`).
+const REF_BOARD_DTCM_BYTES: u64 = 128 * 1024;
+
+/// Why the firmware figures of VGA are null.
+pub const VGA_DOES_NOT_RUN: &str = "the firmware runs QVGA only: a VGA gray + depth frame pair \
+    alone is 921,600 B, more than the reference board's 512 KB budget for everything and than \
+    its largest SRAM region (AXI SRAM, 512 KiB); VGA runs on the host (`ferroslam-sim replay \
+    --profile vga`)";
+
+/// The options.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// A `firmware-replay` output folder whose `cost.json` to read instead of running QEMU.
+    pub from: Option<PathBuf>,
+    /// The dataset to replay (without `from`).
+    pub dataset: PathBuf,
+    /// Frames to replay (without `from`).
+    pub frames: usize,
+    /// Where the replay writes (without `from`).
+    pub out: PathBuf,
+    /// Where to write the JSON report.
+    pub json: Option<PathBuf>,
+    /// Regenerate the figures of `memory-budget.md`.
+    pub write: bool,
+    /// Fail on any bar not met, ceilings or not.
+    pub strict: bool,
+}
+
+impl Options {
+    /// The defaults: 1000 frames of 7-Scenes replayed into `target/xtask/budgets`.
+    pub fn new(root: &Path) -> Self {
+        Self {
+            from: None,
+            dataset: root.join(SEVEN_SCENES),
+            frames: DEFAULT_FRAMES,
+            out: root.join("target").join("xtask").join("budgets"),
+            json: None,
+            write: false,
+            strict: false,
+        }
+    }
+
+    /// Parses the command line (see the module documentation).
+    ///
+    /// # Errors
+    /// An unknown option, a missing or bad value, fewer than [`MIN_FRAMES`] frames.
+    pub fn parse(args: &[String], root: &Path) -> Result<Self> {
+        let mut o = Self::new(root);
+        let mut it = args.iter();
+        while let Some(a) = it.next() {
+            let mut value = || it.next().ok_or_else(|| anyhow!("{a} needs a value"));
+            match a.as_str() {
+                "--from" => o.from = Some(value()?.into()),
+                "--dataset" => o.dataset = value()?.into(),
+                "--frames" => {
+                    let v = value()?;
+                    o.frames = v.parse().with_context(|| format!("--frames {v}"))?;
+                }
+                "--out" => o.out = value()?.into(),
+                "--json" => o.json = Some(value()?.into()),
+                "--write" => o.write = true,
+                "--strict" => o.strict = true,
+                other => bail!("unknown argument {other}"),
+            }
+        }
+        if o.frames < MIN_FRAMES {
+            bail!("--frames {}: the per-frame figures need at least {MIN_FRAMES}", o.frames);
+        }
+        Ok(o)
+    }
+}
+
+/// Runs `budgets` with the command line `args`.
+///
+/// # Errors
+/// As [`run_with`].
+pub fn run(args: &[String]) -> Result<()> {
+    run_with(&root(), &Options::parse(args, &root())?)
+}
+
+/// One firmware binary's memory figures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Binary {
+    /// The binary's name.
+    pub name: &'static str,
+    /// `(section, bytes)` of the sections that take flash or RAM.
+    pub sections: Vec<(String, u64)>,
+    /// Flash: vector table, text, rodata and the data load image.
+    pub flash: u64,
+    /// Static RAM: data, bss, uninit and the H7 regions.
+    pub static_ram: u64,
+}
+
+impl Binary {
+    fn read(root: &Path, name: &'static str) -> Result<Self> {
+        let elf = firmware::elf_path(root, name);
+        let sections = firmware::elf_sections(&elf)
+            .ok_or_else(|| anyhow!("arm-none-eabi-size failed on {}", elf.display()))?;
+        if sections.is_empty() {
+            bail!("{}: no sections read", elf.display());
+        }
+        let (flash, static_ram) = firmware::flash_and_ram(&sections);
+        Ok(Self { name, sections, flash, static_ram })
+    }
+
+    /// The bytes of `section` (0 when absent).
+    pub fn section(&self, section: &str) -> u64 {
+        self.sections.iter().find(|(n, _)| n == section).map_or(0, |(_, b)| *b)
+    }
+}
+
+/// Everything measured.
+#[derive(Debug, Clone)]
+pub struct Measurements {
+    /// The firmware run (per-frame costs, final status).
+    pub run: FirmwareRun,
+    /// Where its `cost.json` is.
+    pub cost_json: PathBuf,
+    /// Both firmware binaries, in [`BINARIES`] order.
+    pub binaries: Vec<Binary>,
+    /// The core structures' `size_of` on this host.
+    pub structures: Vec<ferroslam_tests::structures::Structure>,
+    /// Every figure by key (`qvga.static_ram_bytes`); `None` where it is not measured.
+    pub figures: Vec<(String, Option<u64>)>,
+}
+
+impl Measurements {
+    /// The figure keyed `key`, when measured.
+    pub fn figure(&self, key: &str) -> Option<u64> {
+        self.figures.iter().find(|(k, _)| k == key).and_then(|(_, v)| *v)
+    }
+
+    /// The core structure `name`'s bytes (0 when unknown).
+    pub fn size_of(&self, name: &str) -> u64 {
+        self.structures.iter().find(|s| s.name == name).map_or(0, |s| s.bytes as u64)
+    }
+
+    /// `ref-board`'s DTCM left for the stack.
+    pub fn ref_board_stack_room(&self) -> Option<u64> {
+        let b = self.binaries.iter().find(|b| b.name == "ref-board")?;
+        let dtcm = b.section(".data") + b.section(".bss") + b.section(".uninit");
+        Some(REF_BOARD_DTCM_BYTES.saturating_sub(dtcm))
+    }
+}
+
+/// Builds the firmware, gets the run (see [`Options::from`]) and gathers every figure.
+fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
+    let dir = match &opts.from {
+        Some(dir) => {
+            firmware::build_firmware(root, "qemu-mps2")?;
+            dir.clone()
+        }
+        None => {
+            let replay = ReplayOptions {
+                dataset: opts.dataset.clone(),
+                max_frames: opts.frames,
+                out: opts.out.clone(),
+            };
+            replay::run(root, &replay)?;
+            opts.out.clone()
+        }
+    };
+    let cost_json = dir.join("cost.json");
+    let run = FirmwareRun::read(&cost_json)?;
+    let elf = firmware::elf_path(root, "qemu-mps2");
+    let bytes = fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
+    if format!("{:016x}", fnv1a64(&bytes)) != run.elf_fnv1a64 {
+        bail!(
+            "{} is from another build of qemu-mps2 than {}: run firmware-replay again (or budgets \
+             without --from)",
+            cost_json.display(),
+            elf.display()
+        );
+    }
+    if run.frames.len() < MIN_FRAMES {
+        bail!(
+            "{}: {} frames, the budgets need at least {MIN_FRAMES}",
+            cost_json.display(),
+            run.frames.len()
+        );
+    }
+    let binaries = BINARIES.iter().map(|b| Binary::read(root, b)).collect::<Result<Vec<_>>>()?;
+    let mut m = Measurements {
+        run,
+        cost_json,
+        binaries,
+        structures: ferroslam_tests::structures::core_structures(),
+        figures: Vec::new(),
+    };
+    m.figures = figures(&m);
+    Ok(m)
+}
+
+/// Every figure of both profiles, by JSON key.
+fn figures(m: &Measurements) -> Vec<(String, Option<u64>)> {
+    let largest = |f: fn(&Binary) -> u64| m.binaries.iter().map(f).max();
+    let static_ram = largest(|b| b.static_ram);
+    let stack = u64::from(m.run.status.stack_peak_bytes);
+    let q: [(&str, Option<u64>); 11] = [
+        ("static_ram_bytes", static_ram),
+        ("stack_peak_bytes", Some(stack)),
+        ("ram_total_bytes", static_ram.map(|r| r + stack)),
+        ("flash_bytes", largest(|b| b.flash)),
+        (
+            "frame_buffers_bytes",
+            Some(m.size_of("config::QvgaGrayBuffer") + m.size_of("config::QvgaDepthBuffer")),
+        ),
+        ("pipeline_state_bytes", Some(u64::from(m.run.status.state_bytes))),
+        ("slam_state_bytes", Some(m.size_of("system::QvgaSlam"))),
+        ("ba_workspace_bytes", Some(m.size_of("backend::BoardBundleAdjuster"))),
+        ("ref_board_stack_room_bytes", m.ref_board_stack_room()),
+        ("frames", Some(m.run.frames.len() as u64)),
+        ("keyframes", Some(m.run.keyframe_count() as u64)),
+    ];
+    let mut insn = Vec::new();
+    for (stage, prefix) in [
+        ("pipeline", "insn_per_frame"),
+        ("frontend", "frontend_insn_per_frame"),
+        ("backend_step", "backend_step_insn_per_frame"),
+        ("acquire", "acquire_insn_per_frame"),
+    ] {
+        let s = m.run.stats(stage);
+        for (name, v) in [("median", s.median), ("p99", s.p99), ("max", s.max)] {
+            insn.push((format!("qvga.{prefix}_{name}"), Some(v)));
+        }
+    }
+    let vga_known = [
+        (
+            "frame_buffers_bytes",
+            m.size_of("config::VgaGrayBuffer") + m.size_of("config::VgaDepthBuffer"),
+        ),
+        ("slam_state_bytes", m.size_of("system::VgaSlam")),
+        ("frontend_state_bytes", m.size_of("tracking::VgaFrontend")),
+        ("ba_workspace_bytes", m.size_of("backend::BoardBundleAdjuster")),
+    ];
+    let vga_firmware = [
+        "static_ram_bytes",
+        "stack_peak_bytes",
+        "ram_total_bytes",
+        "flash_bytes",
+        "insn_per_frame_median",
+        "insn_per_frame_p99",
+        "insn_per_frame_max",
+        "frontend_insn_per_frame_median",
+        "frontend_insn_per_frame_p99",
+        "frontend_insn_per_frame_max",
+        "backend_step_insn_per_frame_median",
+        "backend_step_insn_per_frame_p99",
+        "backend_step_insn_per_frame_max",
+    ];
+    q.iter()
+        .map(|(k, v)| (format!("qvga.{k}"), *v))
+        .chain(insn)
+        .chain(vga_known.iter().map(|(k, v)| (format!("vga.{k}"), Some(*v))))
+        .chain(vga_firmware.iter().map(|k| (format!("vga.{k}"), None)))
+        .collect()
+}
+
+/// A budget judged against its figure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Check {
+    /// The budget, as the file states it.
+    pub budget: Budget,
+    /// The figure measured now.
+    pub measured: u64,
+}
+
+impl Check {
+    /// Whether the bar is met.
+    pub fn met(&self) -> bool {
+        self.measured <= self.budget.bar
+    }
+
+    /// `measured / bar`.
+    pub fn times_bar(&self) -> f64 {
+        self.measured as f64 / self.budget.bar.max(1) as f64
+    }
+
+    /// `met`, or `NOT MET (x.x times the bar)`.
+    pub fn status(&self) -> String {
+        if self.met() {
+            return "met".into();
+        }
+        let t = self.times_bar();
+        if t < 1.1 {
+            format!("NOT MET ({t:.2} times the bar)")
+        } else {
+            format!("NOT MET ({t:.1} times the bar)")
+        }
+    }
+
+    /// The limit the run holds the figure to: the ceiling, or the bar without one or when
+    /// `strict`.
+    pub fn limit(&self, strict: bool) -> u64 {
+        match self.budget.ceiling {
+            Some(c) if !strict => c,
+            _ => self.budget.bar,
+        }
+    }
+
+    /// Whether the run fails on this figure.
+    pub fn fails(&self, strict: bool) -> bool {
+        self.measured > self.limit(strict)
+    }
+}
+
+/// Pairs every budget with its figure.
+fn check(budgets: &[Budget], m: &Measurements) -> Result<Vec<Check>> {
+    budgets
+        .iter()
+        .map(|b| {
+            let measured = m.figure(&b.key).ok_or_else(|| {
+                anyhow!("memory-budget.md budgets `{}`, which is not a measured figure", b.key)
+            })?;
+            Ok(Check { budget: b.clone(), measured })
+        })
+        .collect()
+}
+
+/// `value` in the unit its key implies: bytes, or instructions in millions.
+pub fn show(key: &str, value: u64) -> String {
+    if key.contains("insn") {
+        millions(value)
+    } else if key.ends_with("bytes") {
+        format!("{} B", thousands(value))
+    } else {
+        thousands(value)
+    }
+}
+
+/// Measures, checks, prints, writes what was asked; fails as the module documentation says.
+///
+/// # Errors
+/// A build, QEMU or file failure; a bad budget block; a figure over its limit.
+pub fn run_with(root: &Path, opts: &Options) -> Result<()> {
+    let doc_path = root.join("memory-budget.md");
+    let doc =
+        fs::read_to_string(&doc_path).with_context(|| format!("reading {}", doc_path.display()))?;
+    let budgets = budget_doc::parse_block(&doc)?;
+    let m = measure(root, opts)?;
+    let checks = check(&budgets, &m)?;
+    print_report(&m, &checks, opts.strict);
+    if let Some(path) = &opts.json {
+        let report = json_report(&m, &checks, opts.strict);
+        fs::write(path, serde_json::to_string_pretty(&report)? + "\n")
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("JSON: {}", path.display());
+    }
+    let rendered = crate::budget_tables::render(&doc, &m, &checks)?;
+    if opts.write {
+        if rendered == doc {
+            println!("memory-budget.md: already up to date");
+        } else {
+            fs::write(&doc_path, &rendered)
+                .with_context(|| format!("writing {}", doc_path.display()))?;
+            println!("memory-budget.md: figures regenerated");
+        }
+    } else if rendered != doc {
+        println!(
+            "note: memory-budget.md states other figures than these: `cargo xtask budgets --write` \
+             regenerates them"
+        );
+    }
+    let failed: Vec<&Check> = checks.iter().filter(|c| c.fails(opts.strict)).collect();
+    let room = m.ref_board_stack_room().unwrap_or(0);
+    let stack = u64::from(m.run.status.stack_peak_bytes);
+    if stack > room {
+        bail!(
+            "ref-board: the peak stack ({stack} B) does not fit the {room} B of DTCM left by its statics"
+        );
+    }
+    if !failed.is_empty() {
+        let list: Vec<String> = failed
+            .iter()
+            .map(|c| {
+                let which =
+                    if c.budget.ceiling.is_some() && !opts.strict { "ceiling" } else { "bar" };
+                format!(
+                    "{} = {} is over its {which} of {}",
+                    c.budget.key,
+                    show(&c.budget.key, c.measured),
+                    show(&c.budget.key, c.limit(opts.strict))
+                )
+            })
+            .collect();
+        bail!("budgets exceeded: {}", list.join("; "));
+    }
+    Ok(())
+}
+
+/// The table of checks and the other figures, to stdout.
+fn print_report(m: &Measurements, checks: &[Check], strict: bool) {
+    let dataset = Path::new(&m.run.dataset)
+        .file_name()
+        .map_or_else(|| m.run.dataset.clone(), |n| n.to_string_lossy().into_owned());
+    println!(
+        "\nbudgets, QVGA reference board: {} frames of {dataset} ({} keyframes) on QEMU's \
+         Cortex-M4F (mps2-an386, -icount shift=0), run {}",
+        m.run.frames.len(),
+        m.run.keyframe_count(),
+        m.cost_json.display()
+    );
+    let mut rows =
+        vec![["figure", "bar", "ceiling", "measured", "status", "check"].map(String::from)];
+    for c in checks {
+        let k = &c.budget.key;
+        let verdict = if c.fails(strict) {
+            format!(
+                "FAIL (over the {})",
+                if c.budget.ceiling.is_some() && !strict { "ceiling" } else { "bar" }
+            )
+        } else {
+            "ok".to_owned()
+        };
+        rows.push([
+            c.budget.what.clone(),
+            show(k, c.budget.bar),
+            c.budget.ceiling.map_or_else(|| "-".to_owned(), |v| show(k, v)),
+            show(k, c.measured),
+            c.status(),
+            verdict,
+        ]);
+    }
+    print_rows(&rows);
+    let not_met: Vec<&str> =
+        checks.iter().filter(|c| !c.met()).map(|c| c.budget.key.as_str()).collect();
+    if not_met.is_empty() {
+        println!("every bar is met");
+    } else {
+        println!(
+            "{} of {} bars NOT MET: {}{}",
+            not_met.len(),
+            checks.len(),
+            not_met.join(", "),
+            if strict { " (--strict: each fails the run)" } else { " (held to their ceilings)" }
+        );
+    }
+    for c in checks.iter().filter(|c| c.met() && c.budget.ceiling.is_some()) {
+        println!("{}: the bar is met now, its ceiling can go", c.budget.key);
+    }
+    println!("\nother figures (no budget):");
+    let mut rows = vec![["figure".to_owned(), "measured".to_owned()]];
+    let mut unmeasured = Vec::new();
+    for (k, v) in &m.figures {
+        if checks.iter().any(|c| &c.budget.key == k) {
+            continue;
+        }
+        match v {
+            Some(v) => rows.push([k.clone(), show(k, *v)]),
+            None => unmeasured.push(k.as_str()),
+        }
+    }
+    for b in &m.binaries {
+        rows.push([format!("{}: flash", b.name), show("bytes", b.flash)]);
+        rows.push([format!("{}: static RAM", b.name), show("bytes", b.static_ram)]);
+    }
+    print_rows(&rows);
+    if !unmeasured.is_empty() {
+        println!(
+            "{} firmware figures of vga are null (`vga.runs = false`): {VGA_DOES_NOT_RUN}",
+            unmeasured.len()
+        );
+    }
+}
+
+/// Left-aligned columns, two spaces apart.
+fn print_rows<const N: usize>(rows: &[[String; N]]) {
+    let widths: Vec<usize> =
+        (0..N).map(|i| rows.iter().map(|r| r[i].chars().count()).max().unwrap_or(0)).collect();
+    for r in rows {
+        let cells: Vec<String> = r.iter().zip(&widths).map(|(c, w)| format!("{c:w$}")).collect();
+        println!("{}", cells.join("  ").trim_end());
+    }
+}
+
+/// The `--json` document.
+fn json_report(m: &Measurements, checks: &[Check], strict: bool) -> Value {
+    let mut root = Map::new();
+    for (key, value) in &m.figures {
+        let Some((profile, figure)) = key.split_once('.') else { continue };
+        let entry = root.entry(profile).or_insert_with(|| Value::Object(Map::new()));
+        if let Value::Object(p) = entry {
+            p.insert(figure.to_owned(), value.map_or(Value::Null, Value::from));
+        }
+    }
+    if let Some(Value::Object(q)) = root.get_mut("qvga") {
+        q.insert("runs".into(), Value::Bool(true));
+        let stages: Map<String, Value> = m
+            .run
+            .stage_stats()
+            .into_iter()
+            .map(|((k, _, _), s)| (k.to_owned(), s.to_json()))
+            .collect();
+        q.insert("insn_per_frame_stages".into(), Value::Object(stages));
+        let binaries: Map<String, Value> = m
+            .binaries
+            .iter()
+            .map(|b| {
+                let sections: Map<String, Value> =
+                    b.sections.iter().map(|(n, s)| (n.clone(), Value::from(*s))).collect();
+                let v = json!({"flash_bytes": b.flash, "static_ram_bytes": b.static_ram, "sections": sections});
+                (b.name.to_owned(), v)
+            })
+            .collect();
+        q.insert("binaries".into(), Value::Object(binaries));
+    }
+    if let Some(Value::Object(v)) = root.get_mut("vga") {
+        v.insert("runs".into(), Value::Bool(false));
+        v.insert("reason".into(), Value::from(VGA_DOES_NOT_RUN));
+    }
+    let checks_json: Vec<Value> = checks
+        .iter()
+        .map(|c| {
+            json!({
+                "figure": c.budget.key, "what": c.budget.what, "bar": c.budget.bar,
+                "ceiling": c.budget.ceiling, "reason": c.budget.reason, "measured": c.measured,
+                "met": c.met(), "times_bar": c.times_bar(), "status": c.status(),
+                "fails": c.fails(strict),
+            })
+        })
+        .collect();
+    root.insert("checks".into(), Value::Array(checks_json));
+    root.insert("strict".into(), Value::Bool(strict));
+    root.insert("passed".into(), Value::Bool(!checks.iter().any(|c| c.fails(strict))));
+    let s = &m.run;
+    root.insert(
+        "source".into(),
+        json!({
+            "dataset": s.dataset, "frames": s.frames.len(), "cost_json": m.cost_json.display().to_string(),
+            "elf_fnv1a64": s.elf_fnv1a64,
+            "unit": "instructions (QEMU mps2-an386, -icount shift=0: SysTick ticks x 40); \
+                     insn_per_frame = front end + back-end step, acquire excluded",
+            "sizes": "bytes; *_state_bytes and ba_workspace_bytes: size_of on the 64-bit host, \
+                      except pipeline_state_bytes (size_of on the board, from its status)",
+        }),
+    );
+    Value::Object(root)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+
+    fn budget(bar: u64, ceiling: Option<u64>) -> Budget {
+        Budget {
+            key: "qvga.flash_bytes".into(),
+            what: "flash".into(),
+            bar,
+            ceiling,
+            reason: ceiling.map(|_| "why".into()),
+            measured: None,
+        }
+    }
+
+    #[test]
+    fn a_ceiling_holds_a_bar_not_met_and_strict_ignores_it() {
+        let c = Check { budget: budget(100, Some(150)), measured: 140 };
+        assert!(!c.met());
+        assert_eq!(c.status(), "NOT MET (1.4 times the bar)");
+        assert!(!c.fails(false));
+        assert!(c.fails(true));
+        let over = Check { measured: 151, ..c.clone() };
+        assert!(over.fails(false));
+        let close = Check { measured: 104, ..c };
+        assert_eq!(close.status(), "NOT MET (1.04 times the bar)");
+        let met = Check { budget: budget(100, None), measured: 100 };
+        assert!(met.met() && !met.fails(true));
+        assert_eq!(met.status(), "met");
+        assert!(Check { budget: budget(100, None), measured: 101 }.fails(false));
+    }
+
+    #[test]
+    fn arguments() {
+        let root = Path::new("/r");
+        let args: Vec<String> =
+            ["--from", "d", "--json", "b.json", "--write", "--strict", "--frames", "300"]
+                .map(String::from)
+                .into();
+        let o = Options::parse(&args, root).unwrap();
+        assert_eq!(o.from, Some(PathBuf::from("d")));
+        assert_eq!(o.json, Some(PathBuf::from("b.json")));
+        assert!(o.write && o.strict);
+        assert_eq!(o.frames, 300);
+        let d = Options::parse(&[], root).unwrap();
+        assert_eq!((d.frames, d.from, d.write, d.strict), (1000, None, false, false));
+        assert!(Options::parse(&["--frames".into(), "199".into()], root).is_err());
+        assert!(Options::parse(&["--frames".into()], root).is_err());
+        assert!(Options::parse(&["--bogus".into()], root).is_err());
+    }
+
+    #[test]
+    fn units_follow_the_key() {
+        assert_eq!(show("qvga.flash_bytes", 725_000), "725,000 B");
+        assert_eq!(show("qvga.insn_per_frame_max", 138_000_000), "138.00 M");
+        assert_eq!(show("qvga.frames", 1000), "1,000");
+    }
+}
