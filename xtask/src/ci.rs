@@ -90,7 +90,7 @@ pub fn run_all() -> Result<()> {
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
-    step("7-Scenes odometry replay, accuracy bar", replay_seven_scenes)?;
+    step("7-Scenes replays (odometry, SLAM), accuracy bars", replay_seven_scenes_both)?;
     step("demo", || {
         cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])
     })?;
@@ -170,29 +170,48 @@ fn budgets() -> Result<()> {
     crate::budgets::run_with(&root(), &opts)
 }
 
-/// The front end's accuracy bar on 7-Scenes (issue 3): ATE RMSE after SE(3) alignment, metres.
-const SEVEN_SCENES_ATE_BAR_M: f64 = 0.060;
+/// The front end's 7-Scenes bar (issue 3): ATE RMSE of the odometry mode, metres.
+const SEVEN_SCENES_ODOMETRY_BAR_M: f64 = 0.060;
+/// The back end's 7-Scenes bar (issue 4): ATE RMSE of the SLAM mode, metres; SLAM must also beat
+/// the odometry mode on the same frames.
+///
+/// Both replays use the product's defaults (RANSAC seed included). The run-to-run spread over
+/// RANSAC seeds is of the same size as the margins (over 4 seeds x 4 frame orders the SLAM mean
+/// is about 0.052 m, see the issue notes), so these checks guard the default configuration
+/// against regressions; they do not prove the bars hold for every seed.
+const SEVEN_SCENES_SLAM_BAR_M: f64 = 0.050;
 
-/// Replays the real 7-Scenes recording through the odometry front end at QVGA and asserts the
-/// front end's bar: every one of the 1000 frames tracked, ATE RMSE at most 0.060 m.
-fn replay_seven_scenes() -> Result<()> {
-    let out = "target/ci/replay-7scenes";
-    let args = ["replay", SEVEN_SCENES, "--out", out, "--mode", "odometry", "--profile", "qvga"];
+/// Replays 7-Scenes at QVGA in `mode` into `target/ci/replay-7scenes-<mode>`, checks that all
+/// 1000 frames were tracked and the ATE RMSE is within `bar_m`, and returns the ATE.
+fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
+    let out = format!("target/ci/replay-7scenes-{mode}");
+    let args = ["replay", SEVEN_SCENES, "--out", &out, "--mode", mode, "--profile", "qvga"];
     cargo(&[&["run", "--release", "-p", "ferroslam-sim", "--"][..], &args[..]].concat())?;
-    let path = root().join(out).join("report.json");
+    let path = root().join(&out).join("report.json");
     let text = std::fs::read_to_string(&path).context("replay wrote no report.json")?;
     let report: serde_json::Value = serde_json::from_str(&text)?;
     let (frames, tracked) = (report["frames"].as_u64(), report["tracked_frames"].as_u64());
     let ate = report["ate_rmse_m"].as_f64().context("report.json has no ate_rmse_m")?;
     eprintln!(
-        "7-Scenes odometry: {frames:?} frames, {tracked:?} tracked, ATE RMSE {ate:.4} m \
-         (bar {SEVEN_SCENES_ATE_BAR_M} m)"
+        "7-Scenes {mode}: {frames:?} frames, {tracked:?} tracked, ATE RMSE {ate:.4} m (bar {bar_m} m)"
     );
     if frames != Some(1000) || tracked != Some(1000) {
-        bail!("7-Scenes: {frames:?} frames processed and {tracked:?} tracked; all 1000 must be");
+        bail!(
+            "7-Scenes {mode}: {frames:?} frames processed and {tracked:?} tracked; all 1000 must be"
+        );
     }
-    if ate > SEVEN_SCENES_ATE_BAR_M {
-        bail!("7-Scenes ATE RMSE {ate:.4} m is over the bar of {SEVEN_SCENES_ATE_BAR_M} m");
+    if ate > bar_m {
+        bail!("7-Scenes {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m} m");
+    }
+    Ok(ate)
+}
+
+/// The odometry and SLAM replays of 7-Scenes with their bars, and SLAM better than odometry.
+fn replay_seven_scenes_both() -> Result<()> {
+    let odometry = replay_seven_scenes("odometry", SEVEN_SCENES_ODOMETRY_BAR_M)?;
+    let slam = replay_seven_scenes("slam", SEVEN_SCENES_SLAM_BAR_M)?;
+    if slam >= odometry {
+        bail!("7-Scenes: SLAM ({slam:.4} m) is not better than odometry ({odometry:.4} m)");
     }
     Ok(())
 }
