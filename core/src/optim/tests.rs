@@ -153,13 +153,20 @@ fn rel(a: f64, b: f64, scale: f64) -> f64 {
     (a - b).abs() / scale
 }
 
-#[test]
-fn reduced_system_matches_dense_reference() {
+/// The test problem started with `lambda_init` 1e-2 and run until its first PCG begins (the
+/// reduced system assembled, nothing solved yet).
+fn at_first_pcg_start() -> std::boxed::Box<Ba> {
     let mut ba = std::boxed::Box::new(Ba::new());
     build(&mut ba);
     let params = BaParams { lambda_init: 1e-2, ..BaParams::DEFAULT };
     ba.start(&camera(), &params).unwrap();
     run_until(&mut ba, |ph| ph == Phase::PcgStart(0));
+    ba
+}
+
+#[test]
+fn reduced_system_matches_dense_reference() {
+    let mut ba = at_first_pcg_start();
     let d = dense(&ba);
     assert!(!ba.work.rig_active[0] && (1..RIGS).all(|r| ba.work.rig_active[r]));
     // Gradient (held in rig_r before PCG starts) and preconditioner blocks L L^T.
@@ -234,11 +241,7 @@ fn pcg_solves_the_reduced_system() {
 
 #[test]
 fn product_is_the_dense_matrix_column_by_column() {
-    let mut ba = std::boxed::Box::new(Ba::new());
-    build(&mut ba);
-    let params = BaParams { lambda_init: 1e-2, ..BaParams::DEFAULT };
-    ba.start(&camera(), &params).unwrap();
-    run_until(&mut ba, |ph| ph == Phase::PcgStart(0));
+    let mut ba = at_first_pcg_start();
     let d = dense(&ba);
     let mut m = SMatrix::<f64, 18, 18>::zeros();
     for col in 0..18 {

@@ -38,12 +38,13 @@ pub(super) const FEATURE_WORDS: usize = capacity::MAX_FEATURES_PER_FRAME.div_cei
 /// Features of the current keyframe already given a landmark (one bit each).
 pub(super) type FeatureSet = [u32; FEATURE_WORDS];
 
-/// Whether feature `i` is in `set`.
-pub(super) fn contains(set: &FeatureSet, i: usize) -> bool {
+/// Whether bit `i` of the bitset `set` (a [`FeatureSet`] or any other) is set.
+pub(super) fn contains(set: &[u32], i: usize) -> bool {
     set.get(i / 32).is_some_and(|w| w & (1 << (i % 32)) != 0)
 }
 
-fn insert(set: &mut FeatureSet, i: usize) {
+/// Sets bit `i` of the bitset `set` (ignored past its end).
+fn insert(set: &mut [u32], i: usize) {
     if let Some(w) = set.get_mut(i / 32) {
         *w |= 1 << (i % 32);
     }
@@ -64,10 +65,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     ) -> usize {
         let mut tracked = [0u32; capacity::MAX_LANDMARKS.div_ceil(32)];
         for t in self.local.items() {
-            let slot = t.id.0.index();
-            if let Some(w) = tracked.get_mut(slot / 32) {
-                *w |= 1 << (slot % 32);
-            }
+            insert(&mut tracked, t.id.0.index());
         }
         let is_tracked = |id: LandmarkId| {
             let slot = id.0.index();
