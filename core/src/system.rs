@@ -1,7 +1,9 @@
 //! The facade: [`Slam::process`] runs the front end on a frame, [`Slam::step_backend`] advances
 //! the back end by a bounded amount of work. The caller schedules the two: on the firmware the
-//! back end runs between frames; on the host deterministic replay gives it a fixed quota per
-//! frame (or a thread, trading determinism for throughput).
+//! back end runs between frames; on the host it runs on its own thread beside the front end
+//! ([`Slam::parts_mut`]), with a fixed quota per frame so the result is the same bits as running
+//! the two in turn (or with as much work as it gets done while the front end tracks a frame,
+//! trading determinism for throughput).
 //!
 //! ```
 //! use ferroslam_core::system::QvgaSlam;
@@ -72,11 +74,27 @@ impl<const W: usize, const H: usize> Slam<W, H> {
         cam: &PinholeCamera,
     ) -> Result<FrameResult, FrontendError> {
         let result = self.frontend.process(frame, cam, &mut self.map)?;
+        self.hand_over(&result);
+        Ok(result)
+    }
+
+    /// Hands the keyframe `result` made, if any, to the back end: the second half of
+    /// [`Self::process`], for a caller that ran [`Frontend::process`] itself through
+    /// [`Self::parts_mut`].
+    pub fn hand_over(&mut self, result: &FrameResult) {
         if let Some((kf, k)) = result.keyframe.and_then(|kf| self.map.keyframe(kf).map(|k| (kf, k)))
         {
             self.backend.keyframe_added(kf, k.seq);
         }
-        Ok(result)
+    }
+
+    /// The front end, the map and the back end, borrowed apart: a host runs
+    /// [`Backend::advance_solve`] (which reads no map) on another thread while
+    /// [`Frontend::process`] tracks the next frame into the map, then calls [`Self::hand_over`]
+    /// and, when the solve finished, [`Backend::finish_solve`] (see `ferroslam-sim`'s SLAM
+    /// replay for a schedule that keeps the sequential result bit for bit).
+    pub fn parts_mut(&mut self) -> (&mut Frontend<W, H>, &mut BoardMap, &mut Backend) {
+        (&mut self.frontend, &mut self.map, &mut self.backend)
     }
 
     /// Advances the back end by at most about `work_quota` units (see [`Backend::step`]).

@@ -26,6 +26,11 @@
 //! frames and the same quota per step, the results are the same bits however the caller
 //! schedules the steps in time (deterministic replay gives a fixed quota per frame).
 //!
+//! A solver step reads no map and writes none: [`Backend::advance_solve`] is that part of `step`
+//! alone, and [`Backend::finish_solve`] the write-back when the solve finished. A host runs the
+//! first on its own thread while the front end tracks the next frame (`ferroslam-sim`'s SLAM
+//! replay does, and keeps the bits of the sequential schedule).
+//!
 //! While a solve runs, the front end keeps tracking and the map keeps growing: the solve works on
 //! a copy of the window's poses and positions, and only keyframes and landmarks still in the map
 //! when it finishes get its results (ids are generation-checked).
@@ -180,11 +185,14 @@ pub struct BackendStats {
 }
 
 /// The job in progress.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 enum Job {
     Idle,
     /// A problem is built; the solve runs.
     Solving(BaKind),
+    /// The solve finished in [`Backend::advance_solve`]; its result waits for
+    /// [`Backend::finish_solve`] to write it to the map.
+    Finished(BaKind, BaSummary),
 }
 
 /// The back end (see the module documentation).
@@ -260,7 +268,7 @@ impl Backend {
 
     /// Whether a solve is in progress.
     pub fn is_busy(&self) -> bool {
-        self.job != Job::Idle
+        !matches!(self.job, Job::Idle)
     }
 
     /// Tells the back end that the front end made keyframe `kf` with creation number `seq`: the
@@ -285,26 +293,77 @@ impl Backend {
         if !self.params.is_valid() {
             return Err(BackendError::InvalidParams);
         }
-        self.stats.steps += 1;
         match self.job {
-            Job::Idle => self.start_job(map, cam),
+            Job::Idle => {
+                self.stats.steps += 1;
+                self.start_job(map, cam)
+            }
             Job::Solving(kind) => {
-                let status = self.ba.step(work_quota.max(1)).map_err(|e| self.abort(e))?;
-                let BaStatus::Finished(summary) = status else {
-                    return Ok(BackendStatus::Solving(kind));
-                };
-                self.stats.work_units += summary.work_units;
-                if summary.termination != Termination::NonFinite {
-                    match kind {
-                        BaKind::Local => self.write_back_local(map),
-                        BaKind::Global => self.write_back_global(map),
-                    }
+                if self.advance_solve(work_quota)? {
+                    Ok(self.finish_solve(map).unwrap_or(BackendStatus::Idle))
+                } else {
+                    Ok(BackendStatus::Solving(kind))
                 }
-                self.ba.clear();
-                self.job = Job::Idle;
-                Ok(BackendStatus::Finished(kind, summary))
+            }
+            // Left by an `advance_solve` whose caller did not finish it: finish it now.
+            Job::Finished(..) => Ok(self.finish_solve(map).unwrap_or(BackendStatus::Idle)),
+        }
+    }
+
+    /// Whether a solve is under way, so that the next [`Self::step`] is an
+    /// [`Self::advance_solve`] (which never touches the map) followed, when the solve finishes,
+    /// by [`Self::finish_solve`].
+    pub fn is_solving(&self) -> bool {
+        matches!(self.job, Job::Solving(_))
+    }
+
+    /// The part of [`Self::step`] that reads no map and writes none: advances the solve under way
+    /// by at most about `work_quota` units. It needs only the back end, so a host can run it on
+    /// another thread while the front end tracks the next frame. Returns whether the solve
+    /// finished; its result then waits for [`Self::finish_solve`] (which the next `step` also
+    /// does), and the back end stays busy until then. Does nothing and returns `false` when no
+    /// solve is under way ([`Self::is_solving`]).
+    ///
+    /// When solving, `step(map, cam, q)` is exactly `advance_solve(q)` followed, if it returned
+    /// `true`, by `finish_solve(map)`.
+    ///
+    /// # Errors
+    /// As [`Self::step`].
+    pub fn advance_solve(&mut self, work_quota: u32) -> Result<bool, BackendError> {
+        if !self.params.is_valid() {
+            return Err(BackendError::InvalidParams);
+        }
+        let Job::Solving(kind) = self.job else {
+            return Ok(false);
+        };
+        self.stats.steps += 1;
+        let status = self.ba.step(work_quota.max(1)).map_err(|e| self.abort(e))?;
+        let BaStatus::Finished(summary) = status else {
+            return Ok(false);
+        };
+        self.job = Job::Finished(kind, summary);
+        Ok(true)
+    }
+
+    /// Writes the result of a solve that [`Self::advance_solve`] finished to `map` (unless the
+    /// solve diverged) and makes the back end idle; `None` when no finished solve waits.
+    pub fn finish_solve<const K: usize, const L: usize>(
+        &mut self,
+        map: &mut Map<K, L>,
+    ) -> Option<BackendStatus> {
+        let Job::Finished(kind, summary) = self.job else {
+            return None;
+        };
+        self.stats.work_units += summary.work_units;
+        if summary.termination != Termination::NonFinite {
+            match kind {
+                BaKind::Local => self.write_back_local(map),
+                BaKind::Global => self.write_back_global(map),
             }
         }
+        self.ba.clear();
+        self.job = Job::Idle;
+        Some(BackendStatus::Finished(kind, summary))
     }
 
     /// Builds the next problem, if any, and starts its solve.

@@ -49,7 +49,7 @@ pub(super) fn rank(a: &Feature, b: &Feature) -> Ordering {
 }
 
 /// Per-cell top-k storage: 16 bytes x `MAX_GRID_CELLS * MAX_PER_CELL` = 12,288 bytes.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct GridBuckets {
     cells: [[Candidate; MAX_PER_CELL]; MAX_GRID_CELLS],
     counts: [u8; MAX_GRID_CELLS],

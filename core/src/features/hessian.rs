@@ -28,7 +28,7 @@ const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1
 /// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows and 12,392 bytes of
 /// grid cells: 36,712 bytes for W = 320, 61,032 bytes for W = 640 (the unit tests check both
 /// figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
     /// Responses of the middle layers 1 and 2 of the level being scanned: layer `k` at

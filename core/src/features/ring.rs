@@ -5,7 +5,7 @@ use super::filter::{INTEGRAL_RING_ROWS, IntegralRows};
 
 /// Row `y` of the level's integral image lives in slot `y % INTEGRAL_RING_ROWS`; rows are
 /// `W` wide, of which a level uses its own width (the second level half of it).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct IntegralRing<const W: usize> {
     rows: [[u16; W]; INTEGRAL_RING_ROWS],
 }

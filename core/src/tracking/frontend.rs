@@ -194,7 +194,7 @@ pub struct FrontendStats {
 }
 
 /// The front end for images up to `W` x `H` (see the module documentation).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Frontend<const W: usize, const H: usize> {
     pub(super) params: FrontendParams,
     pub(super) detector: HessianDetector<W>,

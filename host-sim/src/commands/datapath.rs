@@ -16,6 +16,7 @@ use ferroslam_core::tracking::{FrameResult, Frontend, FrontendState, GuideStage}
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+pub use super::slam::Schedule;
 use crate::eval::stats::median_of_sorted;
 use crate::frame::{OwnedFrame, halve_frame};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -201,6 +202,10 @@ pub struct OdometryFrame {
 pub struct BackendReport {
     /// Work units the back end may spend per frame (deterministic replay).
     pub work_quota_per_frame: u32,
+    /// How the back end ran beside the front end: `threaded`, `sequential` or `realtime`.
+    pub schedule: &'static str,
+    /// Whether the run is deterministic (the same input gives the same bits): all but realtime.
+    pub deterministic: bool,
     /// Local bundle adjustments finished.
     pub local_runs: u32,
     /// Segmented global bundle adjustments finished.
@@ -231,6 +236,8 @@ pub enum TrackMode {
     Slam {
         /// Back-end work units per frame.
         quota: u32,
+        /// How the back end runs beside the front end.
+        schedule: Schedule,
     },
 }
 
@@ -278,11 +285,11 @@ where
     match (mode, profile.downsample_levels == 0) {
         (TrackMode::Odometry, true) => odometry_with::<640, 480, S>(source, expected, cam),
         (TrackMode::Odometry, false) => odometry_with::<320, 240, S>(source, expected, cam),
-        (TrackMode::Slam { quota }, true) => {
-            super::slam::run::<640, 480, S>(source, expected, cam, quota)
+        (TrackMode::Slam { quota, schedule }, true) => {
+            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule)
         }
-        (TrackMode::Slam { quota }, false) => {
-            super::slam::run::<320, 240, S>(source, expected, cam, quota)
+        (TrackMode::Slam { quota, schedule }, false) => {
+            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule)
         }
     }
 }

@@ -9,7 +9,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use super::datapath::{self, ProfileSource};
-use super::replay::{ModeArg, ProfileArg, summary};
+use super::replay::{ModeArg, ProfileArg, ScheduleArg, summary};
 use super::report::{Report, write_odometry};
 use crate::eval;
 use crate::plot;
@@ -55,6 +55,9 @@ pub struct DemoArgs {
     /// Back-end work units after each frame (SLAM mode).
     #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
     pub backend_quota: u32,
+    /// How the back end runs beside the front end (SLAM mode).
+    #[arg(long, value_enum, default_value = "threaded")]
+    pub schedule: ScheduleArg,
 }
 
 /// Runs `demo`.
@@ -82,7 +85,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let profile = args.profile.profile();
     let frames = sequence.len();
     let started = Instant::now();
-    if let Some(track_mode) = args.mode.track_mode(args.backend_quota) {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule) {
         let k = sequence.intrinsics();
         #[allow(clippy::cast_possible_truncation)] // intrinsics are exact in f32
         let sensor = PinholeCamera::new(

@@ -48,12 +48,12 @@ pub enum ModeArg {
 }
 
 impl ModeArg {
-    /// The tracker mode, with `quota` back-end units per frame in SLAM mode.
-    pub fn track_mode(self, quota: u32) -> Option<datapath::TrackMode> {
+    /// The tracker mode, with `quota` back-end units per frame and `schedule` in SLAM mode.
+    pub fn track_mode(self, quota: u32, schedule: ScheduleArg) -> Option<datapath::TrackMode> {
         match self {
             Self::DataPath => None,
             Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam { quota }),
+            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule: schedule.schedule() }),
         }
     }
 
@@ -63,6 +63,31 @@ impl ModeArg {
             Self::DataPath => "data-path",
             Self::Odometry => "odometry",
             Self::Slam => "slam",
+        }
+    }
+}
+
+/// How the back end runs beside the front end in SLAM mode (see
+/// [`datapath::Schedule`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScheduleArg {
+    /// The back end on its own thread, with the fixed quota per frame: the same bits as
+    /// `sequential` (deterministic).
+    Threaded,
+    /// Front end, then the back-end step, on one thread (as on the firmware).
+    Sequential,
+    /// The back end on its own thread, solving for as long as the front end tracks each frame;
+    /// the quota is not used. Not deterministic.
+    Realtime,
+}
+
+impl ScheduleArg {
+    /// The schedule.
+    pub fn schedule(self) -> datapath::Schedule {
+        match self {
+            Self::Threaded => datapath::Schedule::Threaded,
+            Self::Sequential => datapath::Schedule::Sequential,
+            Self::Realtime => datapath::Schedule::Realtime,
         }
     }
 }
@@ -90,6 +115,9 @@ pub struct ReplayArgs {
     /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
     #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
     pub backend_quota: u32,
+    /// How the back end runs beside the front end (SLAM mode).
+    #[arg(long, value_enum, default_value = "threaded")]
+    pub schedule: ScheduleArg,
 }
 
 /// Runs `replay`.
@@ -109,7 +137,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
     let gt = dataset.groundtruth_trajectory().cloned();
-    if let Some(track_mode) = args.mode.track_mode(args.backend_quota) {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule) {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;

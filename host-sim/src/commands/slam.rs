@@ -1,22 +1,59 @@
 //! SLAM mode of `replay` and `demo`: the core's [`Slam`] facade with a fixed back-end quota per
-//! frame (deterministic), and the trajectory composed the way ORB-SLAM writes
+//! frame, the back end on its own thread beside the front end ([`Schedule`]; deterministic unless
+//! realtime), and the trajectory composed the way ORB-SLAM writes
 //! `CameraTrajectory.txt`: each frame's pose relative to its reference keyframe at the time it was
 //! tracked, composed with that keyframe's final pose.
 
 use std::collections::HashMap;
 
 use anyhow::{Result, anyhow};
-use ferroslam_core::backend::BackendStatus;
-use ferroslam_core::frame::FrameSource;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use ferroslam_core::backend::{BackendError, BackendStatus};
+use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
-use ferroslam_core::map::KeyFrameId;
+use ferroslam_core::map::{BoardMap, KeyFrameId};
 use ferroslam_core::system::Slam;
+use ferroslam_core::tracking::{FrameResult, Frontend};
 
 use super::datapath::{BackendReport, OdometryRun, frame_figures, run_with};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
 const DRAIN_STEPS: usize = 10_000;
+
+/// Work units per slice of the back-end thread in [`Schedule::Realtime`].
+const REALTIME_SLICE: u32 = 500;
+
+/// How the back end runs beside the front end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Schedule {
+    /// The back end on its own thread, advancing its solve by the quota while the front end
+    /// tracks the next frame. The result is the same bits as [`Schedule::Sequential`] (and as the
+    /// firmware): a solve step reads no map, so it can overlap the next frame's tracking; when the
+    /// step finishes a solve, whose result the next frame must see, the front end's state is
+    /// restored from a copy taken before the frame and the frame is tracked again after the
+    /// write-back. A step that builds a problem (it reads the map) runs alone.
+    #[default]
+    Threaded,
+    /// One thread: front end, then the back-end step, frame after frame (as on the firmware).
+    Sequential,
+    /// The back end on its own thread, solving in slices of 500 units for as long as the front end
+    /// tracks a frame (at least one slice); a finished solve is written to the map after the
+    /// frame. The quota is not used, and the result depends on thread timing: not deterministic.
+    Realtime,
+}
+
+impl Schedule {
+    /// The schedule's name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Threaded => "threaded",
+            Self::Sequential => "sequential",
+            Self::Realtime => "realtime",
+        }
+    }
+}
 
 /// One frame's pose relative to its reference keyframe (`None`: the frame had none; the pose is
 /// then absolute).
@@ -26,7 +63,124 @@ struct Relative {
     pose: Pose,
 }
 
-/// Runs `source` through a boxed `Slam<W, H>` with `quota` back-end units after each frame.
+/// The state the front end starts a frame from (front end and map), kept while a back-end step
+/// runs beside it; boxed, as it is about 340 KB.
+struct Snapshot<const W: usize, const H: usize> {
+    frontend: Box<Frontend<W, H>>,
+    map: Box<BoardMap>,
+}
+
+/// The back-end step owed for the previous frame, then the front end on `frame`, under
+/// `schedule`; keyframe poses are recorded after the step.
+struct Stepper<'a, const W: usize, const H: usize> {
+    slam: &'a mut Slam<W, H>,
+    cam: &'a PinholeCamera,
+    quota: u32,
+    schedule: Schedule,
+    snapshot: Option<Snapshot<W, H>>,
+    keyframe_pose: &'a mut HashMap<KeyFrameId, (f64, Pose)>,
+}
+
+impl<const W: usize, const H: usize> Stepper<'_, W, H> {
+    /// The back-end step alone.
+    fn step(&mut self) -> Result<BackendStatus> {
+        let status = self.slam.step_backend(self.cam, self.quota).map_err(backend_error)?;
+        record_keyframes(self.slam, self.keyframe_pose);
+        Ok(status)
+    }
+
+    /// The step owed for the previous frame (none before the first), then the front end on
+    /// `frame`.
+    fn step_then_track(&mut self, frame: &RgbdFrame<'_>, owed: bool) -> Result<FrameResult> {
+        if !owed || self.schedule == Schedule::Sequential || !self.slam.backend().is_solving() {
+            if owed {
+                self.step()?;
+            }
+            return Ok(self.slam.process(frame, self.cam)?);
+        }
+        let tracked = match self.schedule {
+            Schedule::Realtime => self.track_beside_realtime_solve(frame)?,
+            Schedule::Threaded | Schedule::Sequential => self.track_beside_solve(frame)?,
+        };
+        self.slam.hand_over(&tracked);
+        Ok(tracked)
+    }
+
+    /// [`Schedule::Threaded`] while a solve is under way.
+    fn track_beside_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
+        // A step that does not finish its solve leaves the map as the previous frame left it.
+        record_keyframes(self.slam, self.keyframe_pose);
+        let (cam, quota) = (self.cam, self.quota);
+        let (frontend, map, backend) = self.slam.parts_mut();
+        match &mut self.snapshot {
+            Some(s) => {
+                s.frontend.as_mut().clone_from(frontend);
+                s.map.as_mut().clone_from(map);
+            }
+            None => {
+                self.snapshot = Some(Snapshot {
+                    frontend: Box::new(frontend.clone()),
+                    map: Box::new(map.clone()),
+                });
+            }
+        }
+        let (solved, tracked) = std::thread::scope(|scope| {
+            let solver = scope.spawn(|| backend.advance_solve(quota));
+            let tracked = frontend.process(frame, cam, map);
+            (solver.join(), tracked)
+        });
+        let finished = solved.map_err(|_| anyhow!("back-end thread panicked"))?;
+        if !finished.map_err(backend_error)? {
+            return Ok(tracked?);
+        }
+        // The solve finished: run in turn, the step would have written the map before this
+        // frame was tracked. Back to the frame's start, write, track again.
+        let (frontend, map, backend) = self.slam.parts_mut();
+        if let Some(s) = &self.snapshot {
+            frontend.clone_from(&s.frontend);
+            map.clone_from(&s.map);
+        }
+        backend.finish_solve(map);
+        record_keyframes(self.slam, self.keyframe_pose);
+        let (frontend, map, _) = self.slam.parts_mut();
+        Ok(frontend.process(frame, cam, map)?)
+    }
+
+    /// [`Schedule::Realtime`] while a solve is under way.
+    fn track_beside_realtime_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
+        record_keyframes(self.slam, self.keyframe_pose);
+        let cam = self.cam;
+        let (frontend, map, backend) = self.slam.parts_mut();
+        let tracking = AtomicBool::new(true);
+        let (solved, tracked) = std::thread::scope(|scope| {
+            let solver = scope.spawn(|| {
+                loop {
+                    match backend.advance_solve(REALTIME_SLICE) {
+                        Ok(false) if tracking.load(Ordering::Acquire) => {}
+                        done => return done,
+                    }
+                }
+            });
+            let tracked = frontend.process(frame, cam, map);
+            tracking.store(false, Ordering::Release);
+            (solver.join(), tracked)
+        });
+        let finished = solved.map_err(|_| anyhow!("back-end thread panicked"))?;
+        if finished.map_err(backend_error)? {
+            let (_, map, backend) = self.slam.parts_mut();
+            backend.finish_solve(map);
+            record_keyframes(self.slam, self.keyframe_pose);
+        }
+        Ok(tracked?)
+    }
+}
+
+fn backend_error(e: BackendError) -> anyhow::Error {
+    anyhow!("back end: {e}")
+}
+
+/// Runs `source` through a boxed `Slam<W, H>` with `quota` back-end units after each frame,
+/// the back end scheduled by `schedule`.
 ///
 /// # Errors
 /// As [`run_with`]; a back-end error.
@@ -35,6 +189,7 @@ pub fn run<const W: usize, const H: usize, S>(
     expected: usize,
     cam: &PinholeCamera,
     quota: u32,
+    schedule: Schedule,
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
@@ -45,12 +200,22 @@ where
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     // The latest pose of every keyframe seen: keyframes the map retires keep their last one.
     let mut keyframe_pose: HashMap<KeyFrameId, (f64, Pose)> = HashMap::new();
+    let mut stepper = Stepper {
+        slam: &mut slam,
+        cam,
+        quota,
+        schedule,
+        snapshot: None,
+        keyframe_pose: &mut keyframe_pose,
+    };
+    let mut owed = false;
     let data = run_with(source, expected, |frame| {
-        let r = slam.process(frame, cam)?;
+        let r = stepper.step_then_track(frame, owed)?;
+        owed = true;
         online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
         per_frame.push(frame_figures(frame.timestamp_s, &r));
-        let reference =
-            r.reference_keyframe.and_then(|k| slam.map().keyframe(k).map(|kf| (k, kf.t_wc)));
+        let map = stepper.slam.map();
+        let reference = r.reference_keyframe.and_then(|k| map.keyframe(k).map(|kf| (k, kf.t_wc)));
         relative.push(match reference {
             Some((k, t_wk)) => Relative {
                 timestamp_s: frame.timestamp_s,
@@ -59,17 +224,17 @@ where
             },
             None => Relative { timestamp_s: frame.timestamp_s, keyframe: None, pose: r.t_wc },
         });
-        slam.step_backend(cam, quota).map_err(|e| anyhow!("back end: {e}"))?;
-        record_keyframes(&slam, &mut keyframe_pose);
         Ok(())
     })?;
+    if owed {
+        stepper.step()?;
+    }
+    drop(stepper);
     for _ in 0..DRAIN_STEPS {
         if !slam.backend().is_busy() {
             break;
         }
-        if let BackendStatus::Idle =
-            slam.step_backend(cam, quota).map_err(|e| anyhow!("back end: {e}"))?
-        {
+        if let BackendStatus::Idle = slam.step_backend(cam, quota).map_err(backend_error)? {
             break;
         }
     }
@@ -99,7 +264,7 @@ where
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
         state_bytes: std::mem::size_of::<Slam<W, H>>(),
-        backend: Some(backend_report(&slam, quota)),
+        backend: Some(backend_report(&slam, quota, schedule)),
     })
 }
 
@@ -112,7 +277,11 @@ fn record_keyframes<const W: usize, const H: usize>(
     }
 }
 
-fn backend_report<const W: usize, const H: usize>(slam: &Slam<W, H>, quota: u32) -> BackendReport {
+fn backend_report<const W: usize, const H: usize>(
+    slam: &Slam<W, H>,
+    quota: u32,
+    schedule: Schedule,
+) -> BackendReport {
     let b = slam.backend().stats();
     let window_sizes: Vec<[u32; 2]> = b
         .window_sizes
@@ -126,6 +295,8 @@ fn backend_report<const W: usize, const H: usize>(slam: &Slam<W, H>, quota: u32)
     let all_points = b.free_points + b.fixed_points;
     BackendReport {
         work_quota_per_frame: quota,
+        schedule: schedule.name(),
+        deterministic: schedule != Schedule::Realtime,
         local_runs: b.local_runs,
         global_runs: b.global_runs,
         window_mean: if windows > 0 { weighted as f64 / f64::from(windows) } else { 0.0 },
