@@ -9,7 +9,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use super::datapath::{self, ProfileSource};
-use super::replay::{ModeArg, ProfileArg, ScheduleArg, summary};
+use super::replay::{ModeArg, ProfileArg, summary};
 use super::report::{Report, write_odometry};
 use crate::eval;
 use crate::plot;
@@ -57,7 +57,7 @@ pub struct DemoArgs {
     pub backend_quota: u32,
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
-    pub schedule: ScheduleArg,
+    pub schedule: datapath::Schedule,
 }
 
 /// Runs `demo`.

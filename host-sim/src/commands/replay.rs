@@ -49,11 +49,15 @@ pub enum ModeArg {
 
 impl ModeArg {
     /// The tracker mode, with `quota` back-end units per frame and `schedule` in SLAM mode.
-    pub fn track_mode(self, quota: u32, schedule: ScheduleArg) -> Option<datapath::TrackMode> {
+    pub fn track_mode(
+        self,
+        quota: u32,
+        schedule: datapath::Schedule,
+    ) -> Option<datapath::TrackMode> {
         match self {
             Self::DataPath => None,
             Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule: schedule.schedule() }),
+            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule }),
         }
     }
 
@@ -63,31 +67,6 @@ impl ModeArg {
             Self::DataPath => "data-path",
             Self::Odometry => "odometry",
             Self::Slam => "slam",
-        }
-    }
-}
-
-/// How the back end runs beside the front end in SLAM mode (see
-/// [`datapath::Schedule`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ScheduleArg {
-    /// The back end on its own thread, with the fixed quota per frame: the same bits as
-    /// `sequential` (deterministic).
-    Threaded,
-    /// Front end, then the back-end step, on one thread (as on the firmware).
-    Sequential,
-    /// The back end on its own thread, solving for as long as the front end tracks each frame;
-    /// the quota is not used. Not deterministic.
-    Realtime,
-}
-
-impl ScheduleArg {
-    /// The schedule.
-    pub fn schedule(self) -> datapath::Schedule {
-        match self {
-            Self::Threaded => datapath::Schedule::Threaded,
-            Self::Sequential => datapath::Schedule::Sequential,
-            Self::Realtime => datapath::Schedule::Realtime,
         }
     }
 }
@@ -117,7 +96,7 @@ pub struct ReplayArgs {
     pub backend_quota: u32,
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
-    pub schedule: ScheduleArg,
+    pub schedule: datapath::Schedule,
 }
 
 /// Runs `replay`.

@@ -6,8 +6,10 @@
 
 use std::collections::HashMap;
 
-use anyhow::{Result, anyhow};
 use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::{Result, anyhow};
+use clap::ValueEnum;
 
 use ferroslam_core::backend::{BackendError, BackendStatus};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
@@ -26,7 +28,7 @@ const DRAIN_STEPS: usize = 10_000;
 const REALTIME_SLICE: u32 = 500;
 
 /// How the back end runs beside the front end.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum Schedule {
     /// The back end on its own thread, advancing its solve by the quota while the front end
     /// tracks the next frame. The result is the same bits as [`Schedule::Sequential`] (and as the
@@ -35,12 +37,17 @@ pub enum Schedule {
     /// restored from a copy taken before the frame and the frame is tracked again after the
     /// write-back. A step that builds a problem (it reads the map) runs alone.
     #[default]
+    #[value(help = "The back end on its own thread, with the fixed quota per frame: the same \
+                    bits as `sequential` (deterministic)")]
     Threaded,
     /// One thread: front end, then the back-end step, frame after frame (as on the firmware).
+    #[value(help = "Front end, then the back-end step, on one thread (as on the firmware)")]
     Sequential,
     /// The back end on its own thread, solving in slices of 500 units for as long as the front end
     /// tracks a frame (at least one slice); a finished solve is written to the map after the
     /// frame. The quota is not used, and the result depends on thread timing: not deterministic.
+    #[value(help = "The back end on its own thread, solving for as long as the front end \
+                    tracks each frame; the quota is not used. Not deterministic")]
     Realtime,
 }
 
@@ -79,6 +86,8 @@ struct Stepper<'a, const W: usize, const H: usize> {
     schedule: Schedule,
     snapshot: Option<Snapshot<W, H>>,
     keyframe_pose: &'a mut HashMap<KeyFrameId, (f64, Pose)>,
+    /// Whether a frame was tracked whose back-end step has not run yet.
+    owed: bool,
 }
 
 impl<const W: usize, const H: usize> Stepper<'_, W, H> {
@@ -90,20 +99,29 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
     }
 
     /// The step owed for the previous frame (none before the first), then the front end on
-    /// `frame`.
-    fn step_then_track(&mut self, frame: &RgbdFrame<'_>, owed: bool) -> Result<FrameResult> {
-        if !owed || self.schedule == Schedule::Sequential || !self.slam.backend().is_solving() {
-            if owed {
-                self.step()?;
-            }
-            return Ok(self.slam.process(frame, self.cam)?);
-        }
+    /// `frame`; the step is then owed for this frame.
+    fn step_then_track(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
+        let owed = std::mem::replace(&mut self.owed, true);
+        let overlap = owed && self.slam.backend().is_solving();
         let tracked = match self.schedule {
-            Schedule::Realtime => self.track_beside_realtime_solve(frame)?,
-            Schedule::Threaded | Schedule::Sequential => self.track_beside_solve(frame)?,
+            Schedule::Threaded if overlap => self.track_beside_solve(frame)?,
+            Schedule::Realtime if overlap => self.track_beside_realtime_solve(frame)?,
+            _ => {
+                if owed {
+                    self.step()?;
+                }
+                return Ok(self.slam.process(frame, self.cam)?);
+            }
         };
         self.slam.hand_over(&tracked);
         Ok(tracked)
+    }
+
+    /// Writes the solve that finished beside the front end to the map.
+    fn write_back(&mut self) {
+        let (_, map, backend) = self.slam.parts_mut();
+        backend.finish_solve(map);
+        record_keyframes(self.slam, self.keyframe_pose);
     }
 
     /// [`Schedule::Threaded`] while a solve is under way.
@@ -129,19 +147,17 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
             let tracked = frontend.process(frame, cam, map);
             (solver.join(), tracked)
         });
-        let finished = solved.map_err(|_| anyhow!("back-end thread panicked"))?;
-        if !finished.map_err(backend_error)? {
+        if !solve_finished(solved)? {
             return Ok(tracked?);
         }
         // The solve finished: run in turn, the step would have written the map before this
         // frame was tracked. Back to the frame's start, write, track again.
-        let (frontend, map, backend) = self.slam.parts_mut();
+        let (frontend, map, _) = self.slam.parts_mut();
         if let Some(s) = &self.snapshot {
             frontend.clone_from(&s.frontend);
             map.clone_from(&s.map);
         }
-        backend.finish_solve(map);
-        record_keyframes(self.slam, self.keyframe_pose);
+        self.write_back();
         let (frontend, map, _) = self.slam.parts_mut();
         Ok(frontend.process(frame, cam, map)?)
     }
@@ -165,11 +181,8 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
             tracking.store(false, Ordering::Release);
             (solver.join(), tracked)
         });
-        let finished = solved.map_err(|_| anyhow!("back-end thread panicked"))?;
-        if finished.map_err(backend_error)? {
-            let (_, map, backend) = self.slam.parts_mut();
-            backend.finish_solve(map);
-            record_keyframes(self.slam, self.keyframe_pose);
+        if solve_finished(solved)? {
+            self.write_back();
         }
         Ok(tracked?)
     }
@@ -177,6 +190,11 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
 
 fn backend_error(e: BackendError) -> anyhow::Error {
     anyhow!("back end: {e}")
+}
+
+/// Whether the back-end thread finished its solve.
+fn solve_finished(joined: std::thread::Result<Result<bool, BackendError>>) -> Result<bool> {
+    joined.map_err(|_| anyhow!("back-end thread panicked"))?.map_err(backend_error)
 }
 
 /// Runs `source` through a boxed `Slam<W, H>` with `quota` back-end units after each frame,
@@ -207,11 +225,10 @@ where
         schedule,
         snapshot: None,
         keyframe_pose: &mut keyframe_pose,
+        owed: false,
     };
-    let mut owed = false;
     let data = run_with(source, expected, |frame| {
-        let r = stepper.step_then_track(frame, owed)?;
-        owed = true;
+        let r = stepper.step_then_track(frame)?;
         online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         let map = stepper.slam.map();
@@ -226,7 +243,7 @@ where
         });
         Ok(())
     })?;
-    if owed {
+    if stepper.owed {
         stepper.step()?;
     }
     drop(stepper);
