@@ -16,6 +16,9 @@
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
+//! - `spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]`: the ATE of the
+//!   odometry and SLAM replays over several RANSAC seeds and start frames (mean, median, range),
+//!   to tell a real accuracy change from a lucky run; see `spread.rs`.
 
 mod bench;
 mod budget_doc;
@@ -25,6 +28,7 @@ mod ci;
 mod cost;
 mod firmware;
 mod replay;
+mod spread;
 mod stats;
 
 use std::process::ExitCode;
@@ -39,12 +43,14 @@ fn main() -> ExitCode {
         }
         Some("bench-frontend") => bench::run(&args[1..]),
         Some("budgets") => budgets::run(&args[1..]),
+        Some("spread") => spread::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--max-frames N] [--out DIR] | \
                  budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] \
                  [--write] [--strict] | \
-                 bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]>"
+                 bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
+                 spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]>"
             );
             return ExitCode::from(2);
         }

@@ -12,7 +12,8 @@ use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::image::{ImageError, total_variation};
 use ferroslam_core::map::BoardMap;
-use ferroslam_core::tracking::{FrameResult, Frontend, FrontendState, GuideStage};
+use ferroslam_core::system::SLAM_FRONTEND;
+use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState, GuideStage};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -267,7 +268,8 @@ pub struct OdometryRun {
 }
 
 /// Runs every frame of `source` through the core, sized for `profile` (QVGA: 320 x 240; VGA:
-/// 640 x 480), with the camera `cam` at the processing resolution.
+/// 640 x 480), with the camera `cam` at the processing resolution and the front end's default
+/// parameters.
 ///
 /// # Errors
 /// As [`run_with`]; a frame the front end rejects (size or timestamp); a back-end error.
@@ -282,14 +284,47 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
+    run_seeded(source, expected, cam, profile, mode, None)
+}
+
+/// [`run_odometry`] with the front end's RANSAC seeded by `rng_seed` (`None`: the core's default
+/// seed, `FrontendParams::rng_seed`); everything else as the mode's defaults (odometry:
+/// `FrontendParams::DEFAULT`; SLAM: `system::SLAM_FRONTEND`). Runs with other seeds show how much
+/// of an accuracy figure is chance.
+///
+/// # Errors
+/// As [`run_odometry`].
+pub fn run_seeded<S>(
+    source: &mut S,
+    expected: usize,
+    cam: &PinholeCamera,
+    profile: Profile,
+    mode: TrackMode,
+    rng_seed: Option<u64>,
+) -> Result<OdometryRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
+    let seeded = |mut p: FrontendParams| {
+        if let Some(seed) = rng_seed {
+            p.rng_seed = seed;
+        }
+        p
+    };
+    let (odometry, slam) = (seeded(FrontendParams::DEFAULT), seeded(SLAM_FRONTEND));
     match (mode, profile.downsample_levels == 0) {
-        (TrackMode::Odometry, true) => odometry_with::<640, 480, S>(source, expected, cam),
-        (TrackMode::Odometry, false) => odometry_with::<320, 240, S>(source, expected, cam),
+        (TrackMode::Odometry, true) => {
+            odometry_with::<640, 480, S>(source, expected, cam, odometry)
+        }
+        (TrackMode::Odometry, false) => {
+            odometry_with::<320, 240, S>(source, expected, cam, odometry)
+        }
         (TrackMode::Slam { quota, schedule }, true) => {
-            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule)
+            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, slam)
         }
         (TrackMode::Slam { quota, schedule }, false) => {
-            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule)
+            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, slam)
         }
     }
 }
@@ -325,13 +360,14 @@ fn odometry_with<const W: usize, const H: usize, S>(
     source: &mut S,
     expected: usize,
     cam: &PinholeCamera,
+    params: FrontendParams,
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     // Hundreds of KB each: boxed, never kept on the stack.
-    let mut frontend: Box<Frontend<W, H>> = Box::default();
+    let mut frontend: Box<Frontend<W, H>> = Box::new(Frontend::with_params(params));
     let mut map: Box<BoardMap> = Box::default();
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = run_with(source, expected, |frame| {

@@ -85,7 +85,10 @@ pub struct ReplayArgs {
     /// TUM intrinsics (tum1, tum2, tum3) instead of the folder's calibration.toml.
     #[arg(long)]
     pub preset: Option<String>,
-    /// Process at most this many frames (the earliest).
+    /// Skip this many frames at the start (before `--max-frames`).
+    #[arg(long, default_value_t = 0)]
+    pub skip_frames: usize,
+    /// Process at most this many frames (the earliest, after `--skip-frames`).
     #[arg(long)]
     pub max_frames: Option<usize>,
     /// What runs on each frame.
@@ -97,6 +100,10 @@ pub struct ReplayArgs {
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
     pub schedule: datapath::Schedule,
+    /// Seed of the front end's RANSAC (default: the core's). Runs with other seeds show how
+    /// much of an accuracy figure is chance (`cargo xtask spread`).
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// Runs `replay`.
@@ -108,6 +115,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let opts = DatasetOptions {
         calibration: args.preset.clone().map_or(CalibrationSource::File, CalibrationSource::Preset),
         profile,
+        skip_frames: args.skip_frames,
         max_frames: args.max_frames,
         ..DatasetOptions::default()
     };
@@ -122,7 +130,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
         let mut reader = dataset.into_reader(8);
         let started = Instant::now();
-        let run = datapath::run_odometry(&mut reader, frames, &cam, profile, track_mode)?;
+        let run = datapath::run_seeded(&mut reader, frames, &cam, profile, track_mode, args.seed)?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = run_note(args.mode, profile.name, (run.data.width, run.data.height));
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;

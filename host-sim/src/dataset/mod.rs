@@ -65,6 +65,8 @@ pub struct DatasetOptions {
     /// The processing resolution: frames are halved `profile.downsample_levels` times after
     /// decoding (default: the core's default profile, QVGA).
     pub profile: Profile,
+    /// Drop this many associated frames from the start (default: 0), before `max_frames`.
+    pub skip_frames: usize,
     /// Keep at most this many associated frames, the earliest (default: all).
     pub max_frames: Option<usize>,
     /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
@@ -77,6 +79,7 @@ impl Default for DatasetOptions {
         Self {
             calibration: CalibrationSource::File,
             profile: Config::default().profile,
+            skip_frames: 0,
             max_frames: None,
             max_dt_s: Tunables::default().association_max_dt_s,
         }
@@ -152,7 +155,7 @@ pub struct Dataset {
 
 impl Dataset {
     /// Opens the folder `dir`: reads the calibration and the lists, drops listed images that are
-    /// not on disk, associates colour to depth and applies `max_frames`.
+    /// not on disk, associates colour to depth and applies `skip_frames`, then `max_frames`.
     ///
     /// # Errors
     /// [`DatasetError::Io`] for a missing or unreadable `rgb.txt`, `depth.txt` or calibration file
@@ -191,6 +194,7 @@ impl Dataset {
         }
         skipped.sort_by(|a, b| a.list.cmp(&b.list).then(a.line.cmp(&b.line)));
         let associated = frames.len();
+        frames.drain(..opts.skip_frames.min(frames.len()));
         if let Some(max) = opts.max_frames {
             frames.truncate(max);
         }
@@ -198,11 +202,12 @@ impl Dataset {
             let missing = skipped.iter().filter(|s| s.reason == SkipReason::Missing).count();
             let reason = format!(
                 "{} colour and {} depth images on disk ({missing} listed but missing), {} \
-                 associated within {} s, max_frames {:?}",
+                 associated within {} s, skip_frames {}, max_frames {:?}",
                 rgb_present.len(),
                 depth_present.len(),
                 associated,
                 opts.max_dt_s,
+                opts.skip_frames,
                 opts.max_frames,
             );
             return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
@@ -217,7 +222,7 @@ impl Dataset {
         &self.dir
     }
 
-    /// Number of associated frames (after `max_frames`).
+    /// Number of associated frames (after `skip_frames` and `max_frames`).
     pub fn len(&self) -> usize {
         self.frames.len()
     }

@@ -114,6 +114,21 @@ fn max_frames_and_profile_calibration() {
 }
 
 #[test]
+fn skip_frames_drops_the_first_frames_before_max_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    tum_like(tmp.path(), 6);
+    let all = Dataset::open(tmp.path(), &opts(QVGA)).unwrap();
+    assert_eq!(all.len(), 4);
+    let o = DatasetOptions { skip_frames: 1, max_frames: Some(2), ..opts(QVGA) };
+    let ds = Dataset::open(tmp.path(), &o).unwrap();
+    assert_eq!(ds.frames(), &all.frames()[1..3]);
+    // Skipping every frame leaves an empty dataset, an error that names the option.
+    let o = DatasetOptions { skip_frames: 4, ..opts(QVGA) };
+    let err = Dataset::open(tmp.path(), &o).unwrap_err().to_string();
+    assert!(err.contains("skip_frames 4"), "{err}");
+}
+
+#[test]
 fn load_frame_decodes_and_halves() {
     let tmp = tempfile::tempdir().unwrap();
     tum_like(tmp.path(), 4);

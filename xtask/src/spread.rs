@@ -1,0 +1,239 @@
+//! `cargo xtask spread`: how much of an accuracy figure is chance.
+//!
+//! A replay is deterministic, but a small change anywhere (a RANSAC seed, the first frame) moves
+//! the trajectory's drift, and with it the ATE, by as much as the margins of the accuracy bars
+//! (on 7-Scenes about +-0.01 m around 0.052 m). One run therefore cannot tell a real improvement
+//! from a lucky draw; this command replays a dataset over several RANSAC seeds and start frames
+//! in the odometry and SLAM modes and reports the spread, so a change is judged on the mean.
+//!
+//! ```text
+//! cargo xtask spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]
+//! ```
+//!
+//! - `--dataset`: a TUM-layout folder (default: 7-Scenes, `../shared/datasets/...`).
+//! - `--seeds N`: the core's default RANSAC seed and the seeds `1..N` (default 3, so 4 seeds).
+//! - `--skips`: start frames, each a run that skips that many frames (default `0,300,600`).
+//! - `--json FILE`: every run's ATE and the summaries, as JSON.
+//!
+//! Each run is `ferroslam-sim replay DATASET --mode MODE --seed S --skip-frames K` (QVGA, the
+//! default back-end quota and schedule), two at a time; the ATE is read from its `report.json`.
+//! Not part of `cargo xtask ci` (it takes a few minutes and asserts nothing): a tool for the
+//! engineer deciding whether a change helps.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+use anyhow::{Context, Result, bail};
+use serde_json::json;
+
+use crate::ci::{SEVEN_SCENES, root};
+
+/// Options of `spread`.
+#[derive(Debug, Clone)]
+struct Options {
+    dataset: PathBuf,
+    seeds: u64,
+    skips: Vec<usize>,
+    json: Option<PathBuf>,
+}
+
+/// One replay of the grid.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    mode: &'static str,
+    /// `None`: the core's default seed.
+    seed: Option<u64>,
+    skip: usize,
+}
+
+/// Mean, median, minimum and maximum of `v` (not empty).
+fn summary(v: &[f64]) -> (f64, f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    let median = if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) };
+    (s.iter().sum::<f64>() / n as f64, median, s[0], s[n - 1])
+}
+
+/// Runs `spread` with the command-line `args` (after the subcommand).
+///
+/// # Errors
+/// Bad arguments, a failed build or replay, or a report without an ATE.
+pub fn run(args: &[String]) -> Result<()> {
+    let opts = parse_args(args)?;
+    let root = root();
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "--release", "-p", "ferroslam-sim"])
+        .current_dir(&root)
+        .status()
+        .context("could not start cargo")?;
+    if !status.success() {
+        bail!("building ferroslam-sim failed with {status}");
+    }
+    let sim = root.join("target").join("release").join("ferroslam-sim");
+    let seeds: Vec<Option<u64>> = std::iter::once(None).chain((1..=opts.seeds).map(Some)).collect();
+    let mut grid = Vec::new();
+    for mode in ["odometry", "slam"] {
+        for &seed in &seeds {
+            for &skip in &opts.skips {
+                grid.push(Run { mode, seed, skip });
+            }
+        }
+    }
+    let out_dir = root.join("target").join("xtask").join("spread");
+    let results = replay_all(&sim, &opts.dataset, &out_dir, &grid)?;
+    print_and_write(&opts, &grid, &results)
+}
+
+/// Replays every run of `grid`, two at a time, and returns their ATEs in grid order.
+fn replay_all(sim: &Path, dataset: &Path, out_dir: &Path, grid: &[Run]) -> Result<Vec<f64>> {
+    let next = Mutex::new(0usize);
+    let results: Mutex<Vec<Option<Result<f64>>>> = Mutex::new(grid.iter().map(|_| None).collect());
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                loop {
+                    let i = {
+                        let mut n = next.lock().unwrap_or_else(|e| e.into_inner());
+                        let i = *n;
+                        *n += 1;
+                        i
+                    };
+                    let Some(run) = grid.get(i) else { break };
+                    let r = replay_one(sim, dataset, &out_dir.join(format!("run-{i}")), run);
+                    if let Ok(a) = &r {
+                        let seed = run.seed.map_or("default".to_owned(), |s| s.to_string());
+                        eprintln!(
+                            "{:>8} seed {seed:>7} skip {:>4}: ATE {a:.4} m",
+                            run.mode, run.skip
+                        );
+                    }
+                    results.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
+                }
+            });
+        }
+    });
+    let results = results.into_inner().unwrap_or_else(|e| e.into_inner());
+    results.into_iter().map(|r| r.context("a run was not done")?).collect()
+}
+
+/// One replay; its ATE RMSE, metres.
+fn replay_one(sim: &Path, dataset: &Path, out: &Path, run: &Run) -> Result<f64> {
+    let mut cmd = Command::new(sim);
+    cmd.arg("replay").arg(dataset).arg("--out").arg(out);
+    cmd.args(["--mode", run.mode, "--skip-frames", &run.skip.to_string()]);
+    if let Some(seed) = run.seed {
+        cmd.args(["--seed", &seed.to_string()]);
+    }
+    let output = cmd.output().with_context(|| format!("could not start {}", sim.display()))?;
+    if !output.status.success() {
+        bail!(
+            "replay {run:?} failed with {}: {}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+    }
+    let path = out.join("report.json");
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let report: serde_json::Value = serde_json::from_str(&text)?;
+    report["ate_rmse_m"].as_f64().with_context(|| format!("{} has no ate_rmse_m", path.display()))
+}
+
+/// Prints the summary of each mode and the paired SLAM-vs-odometry comparison; writes the JSON.
+fn print_and_write(opts: &Options, grid: &[Run], ate: &[f64]) -> Result<()> {
+    println!(
+        "ATE RMSE over {} runs per mode ({} seeds x start frames {:?}) of {}",
+        grid.len() / 2,
+        opts.seeds + 1,
+        opts.skips,
+        opts.dataset.display()
+    );
+    println!("mode       mean    median  min     max     default run");
+    let mut modes = Vec::new();
+    for mode in ["odometry", "slam"] {
+        let v: Vec<f64> =
+            grid.iter().zip(ate).filter(|(r, _)| r.mode == mode).map(|(_, a)| *a).collect();
+        let default = grid
+            .iter()
+            .zip(ate)
+            .find(|(r, _)| r.mode == mode && r.seed.is_none() && r.skip == 0)
+            .map(|(_, a)| *a);
+        let (mean, median, min, max) = summary(&v);
+        let d = default.map_or("-".to_owned(), |a| format!("{a:.4}"));
+        println!("{mode:<10} {mean:.4}  {median:.4}  {min:.4}  {max:.4}  {d}");
+        modes.push(json!({"mode": mode, "mean_m": mean, "median_m": median, "min_m": min,
+            "max_m": max, "default_run_m": default}));
+    }
+    // The grid lists every odometry run, then the SLAM runs in the same order: pair them.
+    let half = grid.len() / 2;
+    let better = (0..half).filter(|&i| ate[half + i] < ate[i]).count();
+    println!("SLAM better than odometry in {better} of {half} paired runs (same seed and start)");
+    if let Some(path) = &opts.json {
+        let runs: Vec<_> = grid
+            .iter()
+            .zip(ate)
+            .map(|(r, a)| json!({"mode": r.mode, "seed": r.seed, "skip_frames": r.skip, "ate_rmse_m": a}))
+            .collect();
+        let doc = json!({"dataset": opts.dataset, "modes": modes, "slam_better_runs": better,
+            "paired_runs": half, "runs": runs});
+        std::fs::write(path, serde_json::to_string_pretty(&doc)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn parse_args(args: &[String]) -> Result<Options> {
+    let mut opts = Options {
+        dataset: root().join(SEVEN_SCENES),
+        seeds: 3,
+        skips: vec![0, 300, 600],
+        json: None,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = || it.next().with_context(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--dataset" => opts.dataset = PathBuf::from(value()?),
+            "--seeds" => opts.seeds = value()?.parse().context("--seeds: a count")?,
+            "--skips" => {
+                opts.skips = value()?
+                    .split(',')
+                    .map(|s| s.trim().parse::<usize>())
+                    .collect::<Result<_, _>>()
+                    .context("--skips: frame counts separated by commas")?;
+            }
+            "--json" => opts.json = Some(PathBuf::from(value()?)),
+            other => bail!(
+                "unknown argument {other}; usage: cargo xtask spread [--dataset DIR] [--seeds N] \
+                 [--skips A,B,...] [--json FILE]"
+            ),
+        }
+    }
+    if opts.skips.is_empty() {
+        bail!("--skips: at least one start frame");
+    }
+    Ok(opts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_of_odd_and_even_counts() {
+        assert_eq!(summary(&[3.0, 1.0, 2.0]), (2.0, 2.0, 1.0, 3.0));
+        assert_eq!(summary(&[4.0, 1.0, 2.0, 1.0]), (2.0, 1.5, 1.0, 4.0));
+    }
+
+    #[test]
+    fn arguments_parse_and_errors_name_the_option() {
+        let a = |s: &[&str]| parse_args(&s.iter().map(|x| (*x).to_owned()).collect::<Vec<_>>());
+        let o = a(&["--seeds", "1", "--skips", "0, 100"]).unwrap();
+        assert_eq!((o.seeds, o.skips), (1, vec![0, 100]));
+        assert!(a(&["--skips", "x"]).unwrap_err().to_string().contains("--skips"));
+        assert!(a(&["--seeds"]).unwrap_err().to_string().contains("needs a value"));
+        assert!(a(&["--frobnicate"]).unwrap_err().to_string().contains("unknown argument"));
+    }
+}
