@@ -187,9 +187,7 @@ fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
     let out = format!("target/ci/replay-7scenes-{mode}");
     let args = ["replay", SEVEN_SCENES, "--out", &out, "--mode", mode, "--profile", "qvga"];
     cargo(&[&["run", "--release", "-p", "ferroslam-sim", "--"][..], &args[..]].concat())?;
-    let path = root().join(&out).join("report.json");
-    let text = std::fs::read_to_string(&path).context("replay wrote no report.json")?;
-    let report: serde_json::Value = serde_json::from_str(&text)?;
+    let report = read_report(&root().join(&out))?;
     let (frames, tracked) = (report["frames"].as_u64(), report["tracked_frames"].as_u64());
     let ate = report["ate_rmse_m"].as_f64().context("report.json has no ate_rmse_m")?;
     eprintln!(
@@ -204,6 +202,14 @@ fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
         bail!("7-Scenes {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m} m");
     }
     Ok(ate)
+}
+
+/// The `report.json` a `ferroslam-sim replay --out dir` wrote.
+pub fn read_report(dir: &Path) -> Result<serde_json::Value> {
+    let path = dir.join("report.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("reading {} (did the replay write it?)", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
 /// The odometry and SLAM replays of 7-Scenes with their bars, and SLAM better than odometry.

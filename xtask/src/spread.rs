@@ -25,9 +25,10 @@ use std::process::Command;
 use std::sync::Mutex;
 
 use anyhow::{Context, Result, bail};
+use ferroslam_sim::eval::ErrorStats;
 use serde_json::json;
 
-use crate::ci::{SEVEN_SCENES, root};
+use crate::ci::{SEVEN_SCENES, read_report, root};
 
 /// Options of `spread`.
 #[derive(Debug, Clone)]
@@ -45,15 +46,6 @@ struct Run {
     /// `None`: the core's default seed.
     seed: Option<u64>,
     skip: usize,
-}
-
-/// Mean, median, minimum and maximum of `v` (not empty).
-fn summary(v: &[f64]) -> (f64, f64, f64, f64) {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    let median = if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) };
-    (s.iter().sum::<f64>() / n as f64, median, s[0], s[n - 1])
 }
 
 /// Runs `spread` with the command-line `args` (after the subcommand).
@@ -134,11 +126,9 @@ fn replay_one(sim: &Path, dataset: &Path, out: &Path, run: &Run) -> Result<f64> 
             String::from_utf8_lossy(&output.stderr).trim()
         );
     }
-    let path = out.join("report.json");
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let report: serde_json::Value = serde_json::from_str(&text)?;
-    report["ate_rmse_m"].as_f64().with_context(|| format!("{} has no ate_rmse_m", path.display()))
+    read_report(out)?["ate_rmse_m"]
+        .as_f64()
+        .with_context(|| format!("{} has no ate_rmse_m", out.join("report.json").display()))
 }
 
 /// Prints the summary of each mode and the paired SLAM-vs-odometry comparison; writes the JSON.
@@ -160,7 +150,9 @@ fn print_and_write(opts: &Options, grid: &[Run], ate: &[f64]) -> Result<()> {
             .zip(ate)
             .find(|(r, _)| r.mode == mode && r.seed.is_none() && r.skip == 0)
             .map(|(_, a)| *a);
-        let (mean, median, min, max) = summary(&v);
+        // The mean, the median (numpy's, as in evo) and the range of the mode's ATEs.
+        let ErrorStats { mean, median, min, max, .. } =
+            ErrorStats::from_errors(&v).context("no runs")?;
         let d = default.map_or("-".to_owned(), |a| format!("{a:.4}"));
         println!("{mode:<10} {mean:.4}  {median:.4}  {min:.4}  {max:.4}  {d}");
         modes.push(json!({"mode": mode, "mean_m": mean, "median_m": median, "min_m": min,
@@ -220,12 +212,6 @@ fn parse_args(args: &[String]) -> Result<Options> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn summary_of_odd_and_even_counts() {
-        assert_eq!(summary(&[3.0, 1.0, 2.0]), (2.0, 2.0, 1.0, 3.0));
-        assert_eq!(summary(&[4.0, 1.0, 2.0, 1.0]), (2.0, 1.5, 1.0, 4.0));
-    }
 
     #[test]
     fn arguments_parse_and_errors_name_the_option() {
