@@ -10,10 +10,11 @@
 //! 1. warps the keyframe patch by the predicted linear map `A` once: template
 //!    `T(q) = I_kf(c_kf + A^-1 q)` over the grid `q in [-h, h]^2`, plus a one-sample margin for
 //!    its gradients;
-//! 2. samples the target once over the whole search window at the predicted sub-pixel position
-//!    plus integer offsets (all samples share one set of bilinear weights, so each costs four
-//!    reads and four multiplies), then scores ZNCC at offsets `-R..=R` in steps of `s`, then at
-//!    every integer offset within `s - 1` of the best;
+//! 2. scores ZNCC between the template rounded to integers and the target's pixels at integer
+//!    offsets `-R..=R` from the rounded prediction in steps of `s`, then at every integer offset
+//!    within `s - 1` of the best; all sums are exact integers, and a candidate's block sums come
+//!    from column sums shared by its row of candidates, so only the product with the template
+//!    reads its pixels;
 //! 3. rejects an ambiguous search (another local maximum more than `s` away within
 //!    [`TrackParams::min_peak_margin`] of the best) and a hopeless one (best ZNCC more than 0.15
 //!    below [`TrackParams::min_zncc`], not worth refining);
@@ -31,17 +32,20 @@
 //! # Cost
 //!
 //! With `n = (2h + 1)^2` grid samples, search radius `R` and step `s`: `(2h + 3)^2` general
-//! bilinear samples for the template, `(2(R + h) + 1)^2` shared-weight samples for the window,
-//! `((2 floor(R/s) + 1)^2 + (2s - 1)^2)` ZNCC candidates of `n` multiply-adds each, then per
-//! Lucas-Kanade step `n` shared-weight samples and ~8 flops each. At the defaults of the fine
-//! stage ([`TrackParams::FINE`]: `h = 4`, `R = 1`, `s = 1`, n = 81): 121 + 121 samples, 9
-//! candidates, typically 2-4 steps: about 3,000 samples and multiply-adds, ~15 k host
-//! instructions. The guide stage ([`TrackParams::GUIDE`]: `R = 8`, `s = 2`) adds a 25 x 25 window
-//! and 81 + 9 candidates, ~60 k instructions.
+//! bilinear samples for the template; per row of candidates, `n + 2R (2h + 1)` pixels for the
+//! column sums, and per candidate `n` integer multiply-adds
+//! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates); then per Lucas-Kanade step `n` shared-weight
+//! samples and ~10 flops each. Measured with callgrind on 7-Scenes QVGA templates (host x86_64,
+//! release build): about 30 k instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`,
+//! `s = 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps, typically
+//! 2-4 plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49
+//! candidates).
 //!
 //! # Memory
 //!
-//! No heap; under 9 KB of stack (the window buffer at the largest radius is 37 x 37 f32).
+//! No heap; under 5 KB of stack at the largest sizes: the template with its margin and its
+//! zero-mean grid (15 x 15 and 13 x 13 f32), the steepest-descent images (2 x 13 x 13 f32), the
+//! coarse scores (17 x 17 f32) and the column sums (2 x 77 i32).
 //!
 //! # Determinism
 //!
@@ -212,7 +216,7 @@ impl<const N: usize, const S: usize> Template<N, S> {
         }
         let mean = sum / (N * N) as f32;
         let mut ss = 0.0f32;
-        for z in zero_mean.iter_mut().flatten() {
+        for z in zero_mean.as_flattened_mut() {
             *z -= mean;
             ss += *z * *z;
         }
@@ -248,23 +252,26 @@ impl<const N: usize> Quantized<N> {
     }
 
     /// ZNCC against the target's pixels of the `N x N` block whose top-left pixel is `(x0, y0)`
-    /// (inside the image: checked by the caller), in exact integer sums; `None` when either is
-    /// flat.
-    fn zncc(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<f32> {
-        // |sums| <= 169 * 255 * 255: exact in i32.
-        let (mut s1, mut s2, mut st) = (0i32, 0i32, 0i32);
+    /// (inside the image: checked by the caller), whose sum and sum of squares are `block`, in
+    /// exact integer sums; `None` when either is flat.
+    fn zncc(
+        &self,
+        data: &[u8],
+        stride: usize,
+        (x0, y0): (usize, usize),
+        block: BlockSums,
+    ) -> Option<f32> {
+        // |sum| <= 169 * 255 * 128: exact in i32.
+        let mut st = 0i32;
         for (j, q_row) in self.values.iter().enumerate() {
             let start = (y0 + j) * stride + x0;
             let row: &[u8; N] = data.get(start..start + N)?.try_into().ok()?;
             for (&s, &v) in row.iter().zip(q_row) {
-                let s = i32::from(s);
-                s1 += s;
-                s2 += s * s;
-                st += s * i32::from(v);
+                st += i32::from(s) * i32::from(v);
             }
         }
         let len = (N * N) as i64;
-        let (s1, s2, st) = (i64::from(s1), i64::from(s2), i64::from(st));
+        let (s1, s2, st) = (i64::from(block.sum), i64::from(block.sum_sq), i64::from(st));
         let var_s = len * s2 - s1 * s1;
         let cov = len * st - s1 * self.sum;
         // Less than ~0.05 gray levels of spread carries no correlation.
@@ -274,6 +281,67 @@ impl<const N: usize> Quantized<N> {
         // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
         let denom = libm::sqrtf(var_s as f32) * libm::sqrtf(self.var_n2 as f32);
         Some((cov as f32 / denom).clamp(-1.0, 1.0))
+    }
+}
+
+/// Widest search window of [`track_patch`], pixels: `2R + 2h + 1` at the largest `R` and `h`.
+const MAX_WINDOW: usize = 2 * MAX_TRACK_SEARCH_RADIUS + 2 * MAX_TRACK_HALF_SIZE + 1;
+
+/// The sum and the sum of squares of a block of target pixels (exact: at most 169 * 255^2).
+#[derive(Debug, Clone, Copy)]
+struct BlockSums {
+    sum: i32,
+    sum_sq: i32,
+}
+
+/// The target's column sums over the `N` rows of one row of candidates: for every window column,
+/// the sum and the sum of squares of the `N` pixels below it. A candidate's block sums are then
+/// `N` column sums instead of `N^2` pixels, so its ZNCC reads the pixels only for the product with
+/// the template.
+struct ColumnSums<const N: usize> {
+    sum: [i32; MAX_WINDOW],
+    sum_sq: [i32; MAX_WINDOW],
+    /// Window row of the candidates these sums are for; `None` before the first row or when a
+    /// row left the buffer (impossible after the caller's check; its candidates then score -1).
+    row: Option<usize>,
+}
+
+impl<const N: usize> ColumnSums<N> {
+    fn new() -> Self {
+        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None }
+    }
+
+    /// The block sums of the candidate at window column `ix` of the candidate row whose top
+    /// pixel row is `y` (window row `iy`); the window starts at column `x0` and is `width`
+    /// columns wide. Recomputes the column sums when the candidate row changes.
+    fn block(
+        &mut self,
+        data: &[u8],
+        stride: usize,
+        (x0, y): (usize, usize),
+        (ix, iy): (usize, usize),
+        width: usize,
+    ) -> Option<BlockSums> {
+        if self.row != Some(iy) {
+            self.row = None;
+            let width = width.min(MAX_WINDOW);
+            let (sum, sum_sq) = (&mut self.sum[..width], &mut self.sum_sq[..width]);
+            sum.fill(0);
+            sum_sq.fill(0);
+            for j in 0..N {
+                let start = (y + j) * stride + x0;
+                let row = data.get(start..start + width)?;
+                for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(row) {
+                    let s = i32::from(s);
+                    *a += s;
+                    *b += s * s;
+                }
+            }
+            self.row = Some(iy);
+        }
+        let sum = self.sum.get(ix..ix + N)?.iter().sum();
+        let sum_sq = self.sum_sq.get(ix..ix + N)?.iter().sum();
+        Some(BlockSums { sum, sum_sq })
     }
 }
 
@@ -289,11 +357,14 @@ fn bilinear_fixed(data: &[u8], stride: usize, x: i32, y: i32) -> f32 {
     let fx = (x & 0xFFFF) as f32 * (1.0 / FIXED_ONE);
     let fy = (y & 0xFFFF) as f32 * (1.0 / FIXED_ONE);
     let i = y0 * stride + x0;
-    let pair = |k: usize| match data.get(k..k + 2) {
-        Some(&[a, b]) => (f32::from(a), f32::from(b)),
-        _ => (0.0, 0.0),
+    // The four pixels are the first two and the last two of one slice: one bounds check.
+    let quad = data.get(i..i.saturating_add(stride + 2)).unwrap_or(&[]);
+    let (Some((&[p00, p10], _)), Some(&[p01, p11])) =
+        (quad.split_first_chunk::<2>(), quad.last_chunk::<2>())
+    else {
+        return 0.0;
     };
-    let ((p00, p10), (p01, p11)) = (pair(i), pair(i + stride));
+    let (p00, p10, p01, p11) = (f32::from(p00), f32::from(p10), f32::from(p01), f32::from(p11));
     let top = p00 + fx * (p10 - p00);
     let bottom = p01 + fx * (p11 - p01);
     top + fy * (bottom - top)
@@ -324,7 +395,14 @@ fn search<const N: usize, const S: usize>(
     let (data, stride) = (target.data(), target.stride());
     let step = params.search_step;
     let q = Quantized::new(t);
-    let score = |ix: usize, iy: usize| q.zncc(data, stride, (x0 + ix, y0 + iy)).unwrap_or(-1.0);
+    let width = 2 * r + N;
+    let mut columns = ColumnSums::<N>::new();
+    let mut score = |ix: usize, iy: usize| {
+        columns
+            .block(data, stride, (x0, y0 + iy), (ix, iy), width)
+            .and_then(|b| q.zncc(data, stride, (x0 + ix, y0 + iy), b))
+            .unwrap_or(-1.0)
+    };
     let mut scores = [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE];
     let k_max = r / step;
     let csize = 2 * k_max + 1;
@@ -428,18 +506,18 @@ impl<const N: usize> Steepest<N> {
         let len = (N * N) as f32;
         let norm2 = t.norm * t.norm;
         for g in [&mut gx, &mut gy] {
-            let mean = g.iter().flatten().sum::<f32>() / len;
+            let mean = g.as_flattened().iter().sum::<f32>() / len;
             let mut coeff = 0.0f32;
-            for (v, z) in g.iter().flatten().zip(t.zero_mean.iter().flatten()) {
+            for (v, z) in g.as_flattened().iter().zip(t.zero_mean.as_flattened()) {
                 coeff += (v - mean) * z;
             }
             coeff /= norm2;
-            for (v, z) in g.iter_mut().flatten().zip(t.zero_mean.iter().flatten()) {
+            for (v, z) in g.as_flattened_mut().iter_mut().zip(t.zero_mean.as_flattened()) {
                 *v = *v - mean - coeff * z;
             }
         }
         let (mut hxx, mut hxy, mut hyy) = (0.0f32, 0.0f32, 0.0f32);
-        for (x, y) in gx.iter().flatten().zip(gy.iter().flatten()) {
+        for (x, y) in gx.as_flattened().iter().zip(gy.as_flattened()) {
             hxx += x * x;
             hxy += x * y;
             hyy += y * y;
