@@ -468,9 +468,14 @@ fn second_peak(scores: &[f32], csize: usize, best: (usize, usize)) -> f32 {
                 continue;
             }
             let s = at(kx, ky);
+            // Only a candidate above the best so far is checked for being a peak (the check reads
+            // 8 neighbours; most candidates fail the cheap comparison first).
+            if s <= second || s.is_nan() {
+                continue;
+            }
             let is_peak = (-1..=1)
                 .all(|dy| (-1..=1).all(|dx| (dx == 0 && dy == 0) || at(kx + dx, ky + dy) <= s));
-            if is_peak && s > second {
+            if is_peak {
                 second = s;
             }
         }
