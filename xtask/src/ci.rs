@@ -188,15 +188,15 @@ fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
     let args = ["replay", SEVEN_SCENES, "--out", &out, "--mode", mode, "--profile", "qvga"];
     cargo(&[&["run", "--release", "-p", "ferroslam-sim", "--"][..], &args[..]].concat())?;
     let report = read_report(&root().join(&out))?;
-    let (frames, tracked) = (report["frames"].as_u64(), report["tracked_frames"].as_u64());
+    let count =
+        |key: &str| report[key].as_u64().with_context(|| format!("report.json has no count {key}"));
+    let (frames, tracked) = (count("frames")?, count("tracked_frames")?);
     let ate = report["ate_rmse_m"].as_f64().context("report.json has no ate_rmse_m")?;
     eprintln!(
-        "7-Scenes {mode}: {frames:?} frames, {tracked:?} tracked, ATE RMSE {ate:.4} m (bar {bar_m} m)"
+        "7-Scenes {mode}: {frames} frames, {tracked} tracked, ATE RMSE {ate:.4} m (bar {bar_m} m)"
     );
-    if frames != Some(1000) || tracked != Some(1000) {
-        bail!(
-            "7-Scenes {mode}: {frames:?} frames processed and {tracked:?} tracked; all 1000 must be"
-        );
+    if frames != 1000 || tracked != 1000 {
+        bail!("7-Scenes {mode}: {frames} frames processed and {tracked} tracked; all 1000 must be");
     }
     if ate > bar_m {
         bail!("7-Scenes {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m} m");
