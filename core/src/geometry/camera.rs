@@ -81,6 +81,20 @@ pub struct WorldProjection {
     pub d_uv_d_p_w: Matrix2x3<f32>,
 }
 
+/// A world point's projection with the Jacobian with respect to the pose only: the fields of
+/// [`WorldProjection`] a pose solver uses
+/// ([`PinholeCamera::project_world_with_pose_jacobian`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseProjection {
+    /// Pixel coordinates `(u, v)`.
+    pub uv: Point2<f32>,
+    /// The point in the camera frame, `t_cw * p_w`, in metres.
+    pub p_c: Point3<f32>,
+    /// `d(uv) / d(xi)` (pixels per metre / per radian) for the left perturbation
+    /// `t_cw <- exp(xi) t_cw` with `xi = [rho; phi]`, taken at `xi = 0`.
+    pub d_uv_d_xi: Matrix2x6<f32>,
+}
+
 /// Pinhole intrinsics (no distortion) and image size, validated on construction.
 ///
 /// `fx, fy`: focal lengths in pixels; `cx, cy`: principal point in pixels (pixel-centre
@@ -269,6 +283,19 @@ impl PinholeCamera {
         t_cw: &Pose,
         p_w: &Point3<f32>,
     ) -> Option<WorldProjection> {
+        let (pose, j) = self.project_world_with_pose_jacobian(t_cw, p_w)?;
+        let d_uv_d_p_w = j * t_cw.rotation.to_rotation_matrix().into_inner();
+        Some(WorldProjection { uv: pose.uv, p_c: pose.p_c, d_uv_d_xi: pose.d_uv_d_xi, d_uv_d_p_w })
+    }
+
+    /// [`Self::project_world_with_jacobians`] without `d(uv)/d(p_w)`, for a solver that moves
+    /// only the pose (tracking): the same values, bit for bit, without the rotation matrix and the
+    /// product that only a point update needs. Also returns `J = d(uv)/d(p_c)`.
+    pub fn project_world_with_pose_jacobian(
+        &self,
+        t_cw: &Pose,
+        p_w: &Point3<f32>,
+    ) -> Option<(PoseProjection, Matrix2x3<f32>)> {
         let p_c = t_cw * p_w;
         let (uv, j) = self.project_with_jacobian(&p_c)?;
         // exp(xi) p_c = p_c + rho + phi x p_c to first order, so d(p_c)/d(phi) = -[p_c]x.
@@ -278,8 +305,7 @@ impl PinholeCamera {
             j.m11, j.m12, j.m13, d_phi.m11, d_phi.m12, d_phi.m13,
             j.m21, j.m22, j.m23, d_phi.m21, d_phi.m22, d_phi.m23,
         );
-        let d_uv_d_p_w = j * t_cw.rotation.to_rotation_matrix().into_inner();
-        Some(WorldProjection { uv, p_c, d_uv_d_xi, d_uv_d_p_w })
+        Some((PoseProjection { uv, p_c, d_uv_d_xi }, j))
     }
 }
 

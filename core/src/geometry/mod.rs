@@ -26,9 +26,11 @@ mod so3;
 #[cfg(test)]
 mod jacobian_tests;
 #[cfg(test)]
-mod test_support;
+pub(crate) mod test_support;
 
 pub use align::{AlignError, align_rigid};
-pub use camera::{CameraError, MIN_PROJECTION_DEPTH_M, PinholeCamera, WorldProjection};
+pub use camera::{
+    CameraError, MIN_PROJECTION_DEPTH_M, PinholeCamera, PoseProjection, WorldProjection,
+};
 pub use se3::{Pose, se3_adjoint, se3_exp, se3_left_jacobian, se3_left_jacobian_inv, se3_log};
 pub use so3::{hat, so3_exp, so3_left_jacobian, so3_left_jacobian_inv, so3_log, vee};
