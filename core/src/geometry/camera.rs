@@ -283,19 +283,22 @@ impl PinholeCamera {
         t_cw: &Pose,
         p_w: &Point3<f32>,
     ) -> Option<WorldProjection> {
-        let (pose, j) = self.project_world_with_pose_jacobian(t_cw, p_w)?;
+        let PoseProjection { uv, p_c, d_uv_d_xi } =
+            self.project_world_with_pose_jacobian(t_cw, p_w)?;
+        // The translation columns of `d(uv)/d(xi)` are `J` itself.
+        let j = d_uv_d_xi.fixed_columns::<3>(0);
         let d_uv_d_p_w = j * t_cw.rotation.to_rotation_matrix().into_inner();
-        Some(WorldProjection { uv: pose.uv, p_c: pose.p_c, d_uv_d_xi: pose.d_uv_d_xi, d_uv_d_p_w })
+        Some(WorldProjection { uv, p_c, d_uv_d_xi, d_uv_d_p_w })
     }
 
     /// [`Self::project_world_with_jacobians`] without `d(uv)/d(p_w)`, for a solver that moves
     /// only the pose (tracking): the same values, bit for bit, without the rotation matrix and the
-    /// product that only a point update needs. Also returns `J = d(uv)/d(p_c)`.
+    /// product that only a point update needs.
     pub fn project_world_with_pose_jacobian(
         &self,
         t_cw: &Pose,
         p_w: &Point3<f32>,
-    ) -> Option<(PoseProjection, Matrix2x3<f32>)> {
+    ) -> Option<PoseProjection> {
         let p_c = t_cw * p_w;
         let (uv, j) = self.project_with_jacobian(&p_c)?;
         // exp(xi) p_c = p_c + rho + phi x p_c to first order, so d(p_c)/d(phi) = -[p_c]x.
@@ -305,7 +308,7 @@ impl PinholeCamera {
             j.m11, j.m12, j.m13, d_phi.m11, d_phi.m12, d_phi.m13,
             j.m21, j.m22, j.m23, d_phi.m21, d_phi.m22, d_phi.m23,
         );
-        Some((PoseProjection { uv, p_c, d_uv_d_xi }, j))
+        Some(PoseProjection { uv, p_c, d_uv_d_xi })
     }
 }
 

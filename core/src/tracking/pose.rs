@@ -117,7 +117,7 @@ struct Problem<'a> {
 impl Problem<'_> {
     /// Residuals of `c` at `t_cw`; `None` when `p_w` does not project (behind the camera).
     fn terms(&self, t_cw: &Pose, c: &Correspondence) -> Option<Terms> {
-        let (proj, _) = self.camera.project_world_with_pose_jacobian(t_cw, &c.p_w)?;
+        let proj = self.camera.project_world_with_pose_jacobian(t_cw, &c.p_w)?;
         let inv_sigma = 1.0 / self.params.pixel_sigma_px;
         let e = (proj.uv - c.uv) * inv_sigma;
         let j = proj.d_uv_d_xi * inv_sigma;
