@@ -231,6 +231,8 @@ struct Quantized<const N: usize> {
     /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
     sum: i64,
     var_n2: i64,
+    /// `sqrt(var_n2)`, the template's factor of every candidate's ZNCC denominator.
+    root_var_n2: f32,
 }
 
 impl<const N: usize> Quantized<N> {
@@ -248,7 +250,8 @@ impl<const N: usize> Quantized<N> {
             }
         }
         // At most 169 * 169 * 128^2: far inside i64.
-        Self { values, sum: qs, var_n2: (N * N) as i64 * qss - qs * qs }
+        let var_n2 = (N * N) as i64 * qss - qs * qs;
+        Self { values, sum: qs, var_n2, root_var_n2: libm::sqrtf(exact_f32(var_n2)) }
     }
 
     /// ZNCC against the target's pixels of the `N x N` block whose top-left pixel is `(x0, y0)`
@@ -279,9 +282,17 @@ impl<const N: usize> Quantized<N> {
             return None;
         }
         // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
-        let denom = libm::sqrtf(var_s as f32) * libm::sqrtf(self.var_n2 as f32);
-        Some((cov as f32 / denom).clamp(-1.0, 1.0))
+        let denom = libm::sqrtf(exact_f32(var_s)) * self.root_var_n2;
+        Some((exact_f32(cov) / denom).clamp(-1.0, 1.0))
     }
+}
+
+/// `v as f32`, through `i32` when `v` fits (every sum of [`Quantized::zncc`] does: the largest,
+/// `n sum s^2` and `|n sum s q|` at 13 x 13, are below 1.87e9): the same value (the nearest f32 to
+/// the integer either way), but the Cortex-M4 converts an `i32` in one instruction and an `i64`
+/// in a library call.
+fn exact_f32(v: i64) -> f32 {
+    i32::try_from(v).map_or(v as f32, |v| v as f32)
 }
 
 /// Widest search window of [`track_patch`], pixels: `2R + 2h + 1` at the largest `R` and `h`.
