@@ -13,7 +13,8 @@
 //! 2. scores ZNCC between the template rounded to integers and the target's pixels at integer
 //!    offsets `-R..=R` from the rounded prediction in steps of `s`, then at every integer offset
 //!    within `s - 1` of the best; all sums are exact integers, and a candidate's block sums come
-//!    from column sums shared by its row of candidates, so only the product with the template
+//!    from column sums shared by its row of candidates (and slid down from the row above: minus
+//!    the pixel rows that left, plus those that entered), so only the product with the template
 //!    reads its pixels;
 //! 3. rejects an ambiguous search (another local maximum more than `s` away within
 //!    [`TrackParams::min_peak_margin`] of the best) and a hopeless one (best ZNCC more than 0.15
@@ -32,14 +33,16 @@
 //! # Cost
 //!
 //! With `n = (2h + 1)^2` grid samples, search radius `R` and step `s`: `(2h + 3)^2` general
-//! bilinear samples for the template; per row of candidates, `n + 2R (2h + 1)` pixels for the
-//! column sums, and per candidate `n` integer multiply-adds
+//! bilinear samples for the template; for the column sums, `(2h + 1)(2R + 2h + 1)` pixels for
+//! the first row of candidates and `2s (2R + 2h + 1)` for each row `s` below it (when
+//! `s < 2h + 1`; from scratch otherwise), and per candidate `n` integer multiply-adds
 //! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates); then per Lucas-Kanade step `n` shared-weight
 //! samples and ~10 flops each. Measured with callgrind on 7-Scenes QVGA templates (host x86_64,
-//! release build): about 30 k instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`,
-//! `s = 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps, typically
-//! 2-4 plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49
-//! candidates).
+//! release build) before the column sums slid (commit 5a4ce29): about 30 k instructions per call
+//! at [`TrackParams::FINE`] (`h = 4`, `R = 1`, `s = 1`: 9 candidates; the template warp is a
+//! quarter of it, the Lucas-Kanade steps, typically 2-4 plus the final score, another third) and
+//! 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49 candidates). Sliding them took the mean over the
+//! calls of 100 frames from 33.0 k to 31.4 k.
 //!
 //! # Memory
 //!
@@ -324,7 +327,10 @@ impl<const N: usize> ColumnSums<N> {
 
     /// The block sums of the candidate at window column `ix` of the candidate row whose top
     /// pixel row is `y` (window row `iy`); the window starts at column `x0` and is `width`
-    /// columns wide. Recomputes the column sums when the candidate row changes.
+    /// columns wide. Updates the column sums when the candidate row changes: by the rows that
+    /// left and entered the `N` rows when it moved down by less than `N` (the coarse pass visits
+    /// its rows top to bottom), otherwise from scratch. All sums are exact integers, so both ways
+    /// give the same values.
     fn block(
         &mut self,
         data: &[u8],
@@ -334,18 +340,39 @@ impl<const N: usize> ColumnSums<N> {
         width: usize,
     ) -> Option<BlockSums> {
         if self.row != Some(iy) {
-            self.row = None;
+            let previous = self.row.take();
             let width = width.min(MAX_WINDOW);
             let (sum, sum_sq) = (&mut self.sum[..width], &mut self.sum_sq[..width]);
-            sum.fill(0);
-            sum_sq.fill(0);
-            for j in 0..N {
-                let start = (y + j) * stride + x0;
-                let row = data.get(start..start + width)?;
-                for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(row) {
-                    let s = i32::from(s);
-                    *a += s;
-                    *b += s * s;
+            let pixels = |j: usize| {
+                let start = j * stride + x0;
+                data.get(start..start + width)
+            };
+            match previous {
+                Some(p) if p < iy && iy - p < N => {
+                    // Window row `r` is image row `y - iy + r`.
+                    let top = y - iy;
+                    for r in p..iy {
+                        let (gone, new) = (pixels(top + r)?, pixels(top + r + N)?);
+                        let columns =
+                            sum.iter_mut().zip(sum_sq.iter_mut()).zip(gone.iter().zip(new));
+                        for ((a, b), (&g, &n)) in columns {
+                            let (g, n) = (i32::from(g), i32::from(n));
+                            *a += n - g;
+                            *b += n * n - g * g;
+                        }
+                    }
+                }
+                _ => {
+                    sum.fill(0);
+                    sum_sq.fill(0);
+                    for j in 0..N {
+                        let row = pixels(y + j)?;
+                        for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(row) {
+                            let s = i32::from(s);
+                            *a += s;
+                            *b += s * s;
+                        }
+                    }
                 }
             }
             self.row = Some(iy);
@@ -739,5 +766,39 @@ pub fn track_patch(
         5 => track_fixed::<11, 13>(args.0, args.1, args.2, args.3, args.4, args.5),
         6 => track_fixed::<13, 15>(args.0, args.1, args.2, args.3, args.4, args.5),
         _ => Err(MatchError::InvalidParams),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Column sums slid from any earlier candidate row equal the sums computed from scratch.
+    #[test]
+    fn slid_column_sums_equal_fresh_ones() {
+        const N: usize = 9;
+        let (w, h) = (40usize, 40usize);
+        let mut img = [0u8; 40 * 40];
+        let mut state = 12345u32;
+        for p in img.iter_mut() {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *p = (state >> 24) as u8;
+        }
+        let (x0, y0, width) = (3usize, 2usize, 2 * 8 + N);
+        // Row visits as the coarse (steps 1, 2, 3, 8) and fine passes make them, and jumps back.
+        let visits = [0usize, 1, 2, 4, 7, 15, 16, 3, 3, 12, 11, 20];
+        let mut slid = ColumnSums::<N>::new();
+        for &iy in &visits {
+            let mut fresh = ColumnSums::<N>::new();
+            for ix in [0usize, 5, width - N] {
+                let a =
+                    slid.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
+                let b =
+                    fresh.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
+                assert!(a.is_some(), "row {iy} column {ix} inside the image");
+                assert_eq!(a, b, "row {iy} column {ix}");
+            }
+        }
+        assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
     }
 }
