@@ -34,8 +34,8 @@
 //!
 //! With `n = (2h + 1)^2` grid samples, search radius `R` and step `s`: `(2h + 3)^2` general
 //! bilinear samples for the template; for the column sums, `(2h + 1)(2R + 2h + 1)` pixels for
-//! the first row of candidates and `2s (2R + 2h + 1)` for each row `s` below it (when
-//! `s < 2h + 1`; from scratch otherwise), and per candidate `n` integer multiply-adds
+//! the first row of candidates and `2s (2R + 2h + 1)` for each coarse row after it (rows `s`
+//! apart; from scratch when `s >= 2h + 1`), and per candidate `n` integer multiply-adds
 //! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates); then per Lucas-Kanade step `n` shared-weight
 //! samples and ~10 flops each. Measured with callgrind on 7-Scenes QVGA templates (host x86_64,
 //! release build) before the column sums slid (commit 5a4ce29): about 30 k instructions per call
@@ -284,7 +284,8 @@ impl<const N: usize> Quantized<N> {
         if var_s * 1000 <= len * len || self.var_n2 <= 0 {
             return None;
         }
-        // Both factors are below 2^47: their f32 roots lose nothing that matters at ZNCC scale.
+        // Both factors are below 1.87e9 (see `exact_f32`): their f32 roots lose nothing that
+        // matters at ZNCC scale.
         let denom = libm::sqrtf(exact_f32(var_s)) * self.root_var_n2;
         Some((exact_f32(cov) / denom).clamp(-1.0, 1.0))
     }
@@ -785,8 +786,10 @@ mod tests {
             *p = (state >> 24) as u8;
         }
         let (x0, y0, width) = (3usize, 2usize, 2 * 8 + N);
-        // Row visits as the coarse (steps 1, 2, 3, 8) and fine passes make them, and jumps back.
+        // Row visits as the coarse (steps 1, 2, 3, 8) and fine passes make them, and jumps back;
+        // every visited block lies inside the image.
         let visits = [0usize, 1, 2, 4, 7, 15, 16, 3, 3, 12, 11, 20];
+        assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
         let mut slid = ColumnSums::<N>::new();
         for &iy in &visits {
             let mut fresh = ColumnSums::<N>::new();
@@ -799,6 +802,5 @@ mod tests {
                 assert_eq!(a, b, "row {iy} column {ix}");
             }
         }
-        assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
     }
 }
