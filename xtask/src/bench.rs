@@ -245,6 +245,13 @@ fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path
         "target/release/ferroslam-sim".to_owned(),
         "replay".to_owned(),
         opts.dataset.display().to_string(),
+    ]
+    .into_iter()
+    .chain(crate::ci::calibration_for(&opts.dataset).into_iter().flat_map(|c| {
+        // The registered calibration of 7-Scenes, as CI replays it.
+        ["--calibration".to_owned(), c.display().to_string()]
+    }))
+    .chain([
         "--out".to_owned(),
         rel(replay_dir),
         "--max-frames".to_owned(),
@@ -252,7 +259,8 @@ fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path
         // The default today; explicit so the benchmark keeps measuring the front end.
         "--mode".to_owned(),
         "odometry".to_owned(),
-    ];
+    ])
+    .collect::<Vec<_>>();
     eprintln!("$ valgrind {}", args.iter().map(|a| shell_quote(a)).collect::<Vec<_>>().join(" "));
     let start = Instant::now();
     let status = Command::new("valgrind").args(&args).current_dir(root).status();

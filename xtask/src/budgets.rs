@@ -212,6 +212,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
         None => {
             let replay = ReplayOptions {
                 dataset: opts.dataset.clone(),
+                calibration: crate::ci::calibration_for(&opts.dataset),
                 max_frames: opts.frames,
                 out: opts.out.clone(),
             };

@@ -6,8 +6,9 @@
 //!   core and firmware (both binaries), the firmware in QEMU checked pose by pose against the host
 //!   replay, the budgets of `memory-budget.md` on that same QEMU run, and replays of the real and
 //!   synthetic data through the host simulator.
-//! - `firmware-replay DATASET [--max-frames N] [--out DIR]`: only the QEMU comparison (default 60
-//!   frames, `target/xtask/firmware-replay`); see `replay.rs`.
+//! - `firmware-replay DATASET [--calibration FILE] [--max-frames N] [--out DIR]`: only the QEMU
+//!   comparison (default 60 frames, `target/xtask/firmware-replay`; 7-Scenes with its registered
+//!   calibration unless `--calibration` says otherwise); see `replay.rs`.
 //! - `budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] [--write]
 //!   [--strict]`: RAM, flash, peak stack and instructions per frame of the firmware (QEMU's
 //!   Cortex-M4F) against the budgets of `memory-budget.md`: prints budget vs measured, fails on
@@ -16,9 +17,9 @@
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
-//! - `spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]`: the ATE of the
-//!   odometry and SLAM replays over several RANSAC seeds and start frames (mean, median, range),
-//!   to tell a real accuracy change from a lucky run; see `spread.rs`.
+//! - `spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]`:
+//!   the ATE of the odometry and SLAM replays over several RANSAC seeds and start frames (mean,
+//!   median, range), to tell a real accuracy change from a lucky run; see `spread.rs`.
 
 mod bench;
 mod budget_doc;
@@ -46,11 +47,13 @@ fn main() -> ExitCode {
         Some("spread") => spread::run(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | firmware-replay DATASET [--max-frames N] [--out DIR] | \
+                "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
+                 [--out DIR] | \
                  budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] \
                  [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
-                 spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]>"
+                 spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
+                 [--json FILE]>"
             );
             return ExitCode::from(2);
         }

@@ -32,7 +32,7 @@ use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::commands::datapath::{OdometryRun, Schedule, TrackMode, run_odometry};
-use ferroslam_sim::dataset::{Dataset, DatasetOptions};
+use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
@@ -55,6 +55,9 @@ fn qemu_timeout(frames: usize) -> Duration {
 pub struct ReplayOptions {
     /// The TUM-layout dataset folder.
     pub dataset: PathBuf,
+    /// A calibration file instead of the folder's `calibration.toml` (`--calibration FILE`;
+    /// default [`crate::ci::calibration_for`] the dataset).
+    pub calibration: Option<PathBuf>,
     /// Frames to run (the earliest).
     pub max_frames: usize,
     /// Output folder.
@@ -62,9 +65,10 @@ pub struct ReplayOptions {
 }
 
 impl ReplayOptions {
-    /// Parses `DATASET [--max-frames N] [--out DIR]`; `default_out` when `--out` is missing.
+    /// Parses `DATASET [--calibration FILE] [--max-frames N] [--out DIR]`; `default_out` when
+    /// `--out` is missing.
     pub fn parse(args: &[String], default_out: PathBuf) -> Result<Self> {
-        let mut dataset = None;
+        let (mut dataset, mut calibration) = (None, None);
         let (mut max_frames, mut out) = (DEFAULT_FRAMES, default_out);
         let mut it = args.iter();
         while let Some(a) = it.next() {
@@ -74,18 +78,25 @@ impl ReplayOptions {
                     max_frames = v.parse().with_context(|| format!("--max-frames {v}"))?;
                 }
                 "--out" => out = it.next().ok_or_else(|| anyhow!("--out needs a value"))?.into(),
+                "--calibration" => {
+                    let v = it.next().ok_or_else(|| anyhow!("--calibration needs a value"))?;
+                    calibration = Some(PathBuf::from(v));
+                }
                 flag if flag.starts_with("--") => bail!("unknown option {flag}"),
                 path if dataset.is_none() => dataset = Some(PathBuf::from(path)),
                 extra => bail!("unexpected argument {extra}"),
             }
         }
         let dataset = dataset.ok_or_else(|| {
-            anyhow!("usage: firmware-replay DATASET [--max-frames N] [--out DIR]")
+            anyhow!(
+                "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--out DIR]"
+            )
         })?;
+        let calibration = calibration.or_else(|| crate::ci::calibration_for(&dataset));
         if max_frames == 0 {
             bail!("--max-frames must be at least 1");
         }
-        Ok(Self { dataset, max_frames, out })
+        Ok(Self { dataset, calibration, max_frames, out })
     }
 }
 
@@ -96,8 +107,14 @@ impl ReplayOptions {
 pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     fs::create_dir_all(&opts.out).with_context(|| format!("creating {}", opts.out.display()))?;
     let out = fs::canonicalize(&opts.out)?;
-    let vga =
-        DatasetOptions { profile: VGA, max_frames: Some(opts.max_frames), ..Default::default() };
+    let calibration =
+        opts.calibration.clone().map_or(CalibrationSource::File, CalibrationSource::Path);
+    let vga = DatasetOptions {
+        calibration,
+        profile: VGA,
+        max_frames: Some(opts.max_frames),
+        ..Default::default()
+    };
     let sensor = Dataset::open(&opts.dataset, &vga)?;
     let frames = sensor.len();
     write_frames(&sensor, &out.join("frames.fsrs"))?;

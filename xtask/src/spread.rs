@@ -1,21 +1,25 @@
 //! `cargo xtask spread`: how much of an accuracy figure is chance.
 //!
 //! A replay is deterministic, but a small change anywhere (a RANSAC seed, the first frame) moves
-//! the trajectory's drift, and with it the ATE, by as much as the margins of the accuracy bars
-//! (on 7-Scenes about +-0.01 m around 0.052 m). One run therefore cannot tell a real improvement
-//! from a lucky draw; this command replays a dataset over several RANSAC seeds and start frames
+//! the trajectory's drift, and with it the ATE (on 7-Scenes with unregistered depth about
+//! +-0.01 m around 0.052 m, the margins of the accuracy bars; with registered depth about
+//! +-0.005 m around 0.037 m). One run therefore cannot tell a real improvement from a lucky draw; this command replays a dataset over several RANSAC seeds and start frames
 //! in the odometry and SLAM modes and reports the spread, so a change is judged on the mean.
 //!
 //! ```text
-//! cargo xtask spread [--dataset DIR] [--seeds N] [--skips A,B,...] [--json FILE]
+//! cargo xtask spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]
 //! ```
 //!
 //! - `--dataset`: a TUM-layout folder (default: 7-Scenes, `../shared/datasets/...`).
+//! - `--calibration`: a calibration file instead of the folder's (default: for 7-Scenes the
+//!   registered calibration CI replays with, [`crate::ci::SEVEN_SCENES_CALIBRATION`]; for any
+//!   other folder its own).
 //! - `--seeds N`: the core's default RANSAC seed and the seeds `1..N` (default 3, so 4 seeds).
 //! - `--skips`: start frames, each a run that skips that many frames (default `0,300,600`).
 //! - `--json FILE`: every run's ATE and the summaries, as JSON.
 //!
-//! Each run is `ferroslam-sim replay DATASET --mode MODE --seed S --skip-frames K` (QVGA, the
+//! Each run is `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
+//! --skip-frames K` (QVGA, the
 //! default back-end quota and schedule), two at a time; the ATE is read from its `report.json`.
 //! Not part of `cargo xtask ci` (it takes a few minutes and asserts nothing): a tool for the
 //! engineer deciding whether a change helps.
@@ -34,6 +38,8 @@ use crate::ci::{SEVEN_SCENES, read_report, root};
 #[derive(Debug, Clone)]
 struct Options {
     dataset: PathBuf,
+    /// `--calibration` for every replay, if any.
+    calibration: Option<PathBuf>,
     seeds: u64,
     skips: Vec<usize>,
     json: Option<PathBuf>,
@@ -74,12 +80,12 @@ pub fn run(args: &[String]) -> Result<()> {
         }
     }
     let out_dir = root.join("target").join("xtask").join("spread");
-    let results = replay_all(&sim, &opts.dataset, &out_dir, &grid)?;
+    let results = replay_all(&sim, &opts, &out_dir, &grid)?;
     print_and_write(&opts, &grid, &results)
 }
 
 /// Replays every run of `grid`, two at a time, and returns their ATEs in grid order.
-fn replay_all(sim: &Path, dataset: &Path, out_dir: &Path, grid: &[Run]) -> Result<Vec<f64>> {
+fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Result<Vec<f64>> {
     let next = Mutex::new(0usize);
     let results: Mutex<Vec<Option<Result<f64>>>> = Mutex::new(grid.iter().map(|_| None).collect());
     std::thread::scope(|s| {
@@ -93,7 +99,7 @@ fn replay_all(sim: &Path, dataset: &Path, out_dir: &Path, grid: &[Run]) -> Resul
                         i
                     };
                     let Some(run) = grid.get(i) else { break };
-                    let r = replay_one(sim, dataset, &out_dir.join(format!("run-{i}")), run);
+                    let r = replay_one(sim, opts, &out_dir.join(format!("run-{i}")), run);
                     if let Ok(a) = &r {
                         let seed = run.seed.map_or("default".to_owned(), |s| s.to_string());
                         eprintln!(
@@ -111,9 +117,12 @@ fn replay_all(sim: &Path, dataset: &Path, out_dir: &Path, grid: &[Run]) -> Resul
 }
 
 /// One replay; its ATE RMSE, metres.
-fn replay_one(sim: &Path, dataset: &Path, out: &Path, run: &Run) -> Result<f64> {
+fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<f64> {
     let mut cmd = Command::new(sim);
-    cmd.arg("replay").arg(dataset).arg("--out").arg(out);
+    cmd.arg("replay").arg(&opts.dataset).arg("--out").arg(out);
+    if let Some(c) = &opts.calibration {
+        cmd.arg("--calibration").arg(c);
+    }
     cmd.args(["--mode", run.mode, "--skip-frames", &run.skip.to_string()]);
     if let Some(seed) = run.seed {
         cmd.args(["--seed", &seed.to_string()]);
@@ -179,15 +188,18 @@ fn print_and_write(opts: &Options, grid: &[Run], ate: &[f64]) -> Result<()> {
 fn parse_args(args: &[String]) -> Result<Options> {
     let mut opts = Options {
         dataset: root().join(SEVEN_SCENES),
+        calibration: None,
         seeds: 3,
         skips: vec![0, 300, 600],
         json: None,
     };
+    let mut calibration = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = || it.next().with_context(|| format!("{a} needs a value"));
         match a.as_str() {
             "--dataset" => opts.dataset = PathBuf::from(value()?),
+            "--calibration" => calibration = Some(PathBuf::from(value()?)),
             "--seeds" => opts.seeds = value()?.parse().context("--seeds: a count")?,
             "--skips" => {
                 opts.skips = value()?
@@ -198,11 +210,12 @@ fn parse_args(args: &[String]) -> Result<Options> {
             }
             "--json" => opts.json = Some(PathBuf::from(value()?)),
             other => bail!(
-                "unknown argument {other}; usage: cargo xtask spread [--dataset DIR] [--seeds N] \
-                 [--skips A,B,...] [--json FILE]"
+                "unknown argument {other}; usage: cargo xtask spread [--dataset DIR] \
+                 [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]"
             ),
         }
     }
+    opts.calibration = calibration.or_else(|| crate::ci::calibration_for(&opts.dataset));
     if opts.skips.is_empty() {
         bail!("--skips: at least one start frame");
     }

@@ -83,8 +83,13 @@ pub struct ReplayArgs {
     #[arg(long, value_enum, default_value = "qvga")]
     pub profile: ProfileArg,
     /// TUM intrinsics (tum1, tum2, tum3) instead of the folder's calibration.toml.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "calibration")]
     pub preset: Option<String>,
+    /// A calibration file to use instead of the folder's calibration.toml (same format; its
+    /// optional `[depth]` table registers depth to colour). For 7-Scenes, whose own file holds
+    /// the nominal depth intrinsics only: `calibration/7scenes-kinect-v1.toml`.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
     /// Skip this many frames at the start (before `--max-frames`).
     #[arg(long, default_value_t = 0)]
     pub skip_frames: usize,
@@ -113,7 +118,11 @@ pub struct ReplayArgs {
 pub fn run(args: &ReplayArgs) -> Result<()> {
     let profile = args.profile.profile();
     let opts = DatasetOptions {
-        calibration: args.preset.clone().map_or(CalibrationSource::File, CalibrationSource::Preset),
+        calibration: match (&args.preset, &args.calibration) {
+            (Some(name), _) => CalibrationSource::Preset(name.clone()),
+            (None, Some(path)) => CalibrationSource::Path(path.clone()),
+            (None, None) => CalibrationSource::File,
+        },
         profile,
         skip_frames: args.skip_frames,
         max_frames: args.max_frames,

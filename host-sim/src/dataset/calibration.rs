@@ -1,4 +1,6 @@
-//! Pinhole intrinsics and depth scale: `calibration.toml` or a TUM preset.
+//! Pinhole intrinsics and depth scale: `calibration.toml` or a TUM preset; optionally the depth
+//! camera's own intrinsics and offset when depth is not registered to colour (see
+//! [`DepthCamera`]).
 
 use std::path::Path;
 
@@ -26,6 +28,31 @@ pub struct Calibration {
     pub height: u32,
     /// Raw depth units per metre (`raw / depth_scale` = depth in metres along the optical axis).
     pub depth_scale: f32,
+    /// The depth camera, when the depth images are not registered to the colour images (the
+    /// `[depth]` table of `calibration.toml`); `None` when they are (every preset, and the
+    /// frames [`super::Dataset::load_frame`] gives, which it registers).
+    pub depth: Option<DepthCamera>,
+}
+
+/// A depth camera beside the colour camera, for depth images that are not registered to colour
+/// (the raw output of a Kinect v1, as in Microsoft 7-Scenes): its pinhole intrinsics at the same
+/// image size (pixels, same pixel convention as [`Calibration`]) and where it sits, as the
+/// translation `t` (metres, colour camera axes) that takes a point from the depth camera's frame
+/// to the colour camera's: `p_colour = p_depth + t`. The two cameras are taken as parallel (no
+/// rotation): a Kinect's are aligned to a fraction of a degree, and the offset and focal lengths
+/// are what moves a depth sample by pixels (see [`super::registration`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthCamera {
+    /// Focal length along x, pixels.
+    pub fx: f32,
+    /// Focal length along y, pixels.
+    pub fy: f32,
+    /// Principal point x, pixels.
+    pub cx: f32,
+    /// Principal point y, pixels.
+    pub cy: f32,
+    /// Translation from the depth camera's frame to the colour camera's, metres: `[tx, ty, tz]`.
+    pub t_m: [f32; 3],
 }
 
 /// The float keys of `calibration.toml`, in the order they are checked.
@@ -33,7 +60,9 @@ const FLOAT_KEYS: [&str; 5] = ["fx", "fy", "cx", "cy", "depth_scale"];
 
 impl Calibration {
     /// Reads and validates a `calibration.toml` with the keys `fx`, `fy`, `cx`, `cy`,
-    /// `depth_scale` (numbers) and `width`, `height` (integers). Other keys are ignored.
+    /// `depth_scale` (numbers) and `width`, `height` (integers), and an optional `[depth]` table
+    /// for depth that is not registered to colour: the depth camera's `fx`, `fy`, `cx`, `cy` and
+    /// its offset `tx`, `ty`, `tz` in metres (see [`DepthCamera`]). Other keys are ignored.
     ///
     /// # Errors
     /// [`DatasetError::Io`] when the file cannot be read; [`DatasetError::CalibrationSyntax`],
@@ -62,7 +91,12 @@ impl Calibration {
         let [fx, fy, cx, cy, depth_scale] = floats;
         let width = int_key(&table, path, "width")?;
         let height = int_key(&table, path, "height")?;
-        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale };
+        let depth = match table.get("depth") {
+            None => None,
+            Some(toml::Value::Table(t)) => Some(depth_camera(t, path)?),
+            Some(other) => return Err(wrong_type(path, "depth", other, "must be a table")),
+        };
+        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale, depth };
         calibration.validate(path)?;
         Ok(calibration)
     }
@@ -79,7 +113,7 @@ impl Calibration {
             "tum3" => (535.4, 539.2, 320.1, 247.6),
             _ => return Err(DatasetError::UnknownPreset { name: name.to_owned() }),
         };
-        Ok(Self { fx, fy, cx, cy, width: 640, height: 480, depth_scale: 5000.0 })
+        Ok(Self { fx, fy, cx, cy, width: 640, height: 480, depth_scale: 5000.0, depth: None })
     }
 
     /// Checks every value: finite and positive, principal point inside the image, size non-zero.
@@ -113,6 +147,25 @@ impl Calibration {
         if self.cy >= self.height as f32 {
             return bad("cy", self.cy.to_string(), "lies outside the image height");
         }
+        if let Some(d) = &self.depth {
+            let values = [d.fx, d.fy, d.cx, d.cy];
+            for (key, v) in DEPTH_KEYS.into_iter().zip(values) {
+                if !(v.is_finite() && v > 0.0) {
+                    return bad(key, v.to_string(), "must be a finite positive number");
+                }
+            }
+            if d.cx >= self.width as f32 {
+                return bad("depth.cx", d.cx.to_string(), "lies outside the image width");
+            }
+            if d.cy >= self.height as f32 {
+                return bad("depth.cy", d.cy.to_string(), "lies outside the image height");
+            }
+            for (key, v) in OFFSET_KEYS.into_iter().zip(d.t_m) {
+                if !(v.is_finite() && v.abs() <= MAX_OFFSET_M) {
+                    return bad(key, v.to_string(), "must be a number of metres within +-1");
+                }
+            }
+        }
         Ok(())
     }
 
@@ -132,6 +185,34 @@ impl Calibration {
         }
         c
     }
+}
+
+/// The intrinsic keys of the `[depth]` table, as errors name them.
+const DEPTH_KEYS: [&str; 4] = ["depth.fx", "depth.fy", "depth.cx", "depth.cy"];
+/// The offset keys of the `[depth]` table, as errors name them.
+const OFFSET_KEYS: [&str; 3] = ["depth.tx", "depth.ty", "depth.tz"];
+/// The largest offset between the depth and colour cameras taken as real, metres: a sensor's two
+/// cameras are centimetres apart; a metre is a unit mistake (millimetres written as metres).
+const MAX_OFFSET_M: f32 = 1.0;
+
+/// The `[depth]` table (see [`Calibration::load`]); the values are checked by
+/// [`Calibration::validate`].
+fn depth_camera(table: &toml::Table, path: &Path) -> Result<DepthCamera, DatasetError> {
+    let mut v = [0.0f32; 7];
+    let keys = DEPTH_KEYS.into_iter().chain(OFFSET_KEYS);
+    for (slot, key) in v.iter_mut().zip(keys) {
+        let short = key.trim_start_matches("depth.");
+        let value = table
+            .get(short)
+            .ok_or_else(|| DatasetError::CalibrationMissingKey { path: path.to_owned(), key })?;
+        *slot = match value {
+            toml::Value::Float(f) => *f as f32,
+            toml::Value::Integer(i) => *i as f32,
+            other => return Err(wrong_type(path, key, other, "must be a number")),
+        };
+    }
+    let [fx, fy, cx, cy, tx, ty, tz] = v;
+    Ok(DepthCamera { fx, fy, cx, cy, t_m: [tx, ty, tz] })
 }
 
 /// A float key (a TOML float or integer), as `f32`.
@@ -227,6 +308,41 @@ mod tests {
         assert_eq!(err.to_string(), "x/calibration.toml: missing key 'fy'");
         let err = Calibration::from_toml_str("fx = = 1", path).unwrap_err();
         assert!(matches!(err, DatasetError::CalibrationSyntax { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_depth_table_gives_the_depth_camera_and_bad_values_name_their_key() {
+        let path = Path::new("c.toml");
+        let with_depth = format!(
+            "{GOOD}[depth]\nfx = 585.0\nfy = 585\ncx = 320.0\ncy = 240.0\ntx = -0.03\nty = 0.006\n\
+             tz = 0\n"
+        );
+        let c = Calibration::from_toml_str(&with_depth, path).unwrap();
+        let d = c.depth.unwrap();
+        assert_eq!((d.fx, d.fy, d.cx, d.cy), (585.0, 585.0, 320.0, 240.0));
+        assert_eq!(d.t_m, [-0.03, 0.006, 0.0]);
+        assert_eq!(Calibration::from_toml_str(GOOD, path).unwrap().depth, None);
+        let cases = [
+            ("fx = 585.0\nfy", "fx = -585.0\nfy", "depth.fx"),
+            ("cy = 240.0\ntx", "cy = 480.0\ntx", "depth.cy"),
+            ("tx = -0.03", "tx = 30", "depth.tx"),
+            ("tz = 0", "tz = nan", "depth.tz"),
+            ("ty = 0.006", "ty = \"a\"", "depth.ty"),
+        ];
+        for (from, to, key) in cases {
+            let (head, tail) = with_depth.split_once("[depth]").unwrap();
+            let text = format!("{head}[depth]{}", tail.replacen(from, to, 1));
+            let err = Calibration::from_toml_str(&text, path).unwrap_err();
+            assert!(
+                matches!(&err, DatasetError::CalibrationValue { key: k, .. } if *k == key),
+                "{to}: {err}"
+            );
+        }
+        let missing = with_depth.replace("tz = 0\n", "");
+        let err = Calibration::from_toml_str(&missing, path).unwrap_err();
+        assert_eq!(err.to_string(), "c.toml: missing key 'depth.tz'");
+        let err = Calibration::from_toml_str(&format!("{GOOD}depth = 3\n"), path).unwrap_err();
+        assert!(matches!(err, DatasetError::CalibrationValue { key: "depth", .. }), "{err}");
     }
 
     #[test]

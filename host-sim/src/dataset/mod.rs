@@ -1,8 +1,9 @@
 //! TUM RGB-D folders: lists, association, calibration, and image decoding on a read-ahead thread.
 //!
 //! A dataset folder holds `rgb.txt` and `depth.txt` (`timestamp path` lines), an optional
-//! `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, camera to world) and, unless a preset is
-//! chosen, `calibration.toml` (see [`Calibration`]). Opening one ([`Dataset::open`]) parses the
+//! `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, camera to world) and, unless a preset or
+//! another file is chosen, `calibration.toml` (see [`Calibration`]; depth that is not registered
+//! to colour is registered as it is decoded, see [`registration`]). Opening one ([`Dataset::open`]) parses the
 //! lists, checks which listed images exist, associates colour to depth by timestamp and validates
 //! the calibration; it decodes nothing. Frames are decoded one at a time with
 //! [`Dataset::load_frame`], or ahead of the pipeline on another thread by a [`DatasetReader`],
@@ -28,6 +29,7 @@ mod decode;
 mod error;
 mod lists;
 mod reader;
+pub mod registration;
 #[cfg(test)]
 mod tests;
 
@@ -38,7 +40,7 @@ use ferroslam_core::config::{Config, Profile, Tunables};
 
 pub use crate::frame::OwnedFrame;
 use crate::frame::halve_frame;
-pub use calibration::Calibration;
+pub use calibration::{Calibration, DepthCamera};
 pub use error::DatasetError;
 pub use reader::DatasetReader;
 
@@ -55,6 +57,9 @@ pub enum CalibrationSource {
     File,
     /// A named preset: `tum1`, `tum2` or `tum3` (see [`Calibration::preset`]).
     Preset(String),
+    /// A calibration file of the same format elsewhere (for a dataset whose own file is wrong or
+    /// incomplete, e.g. nominal intrinsics for depth that is not registered to colour).
+    Path(PathBuf),
 }
 
 /// How to open a dataset.
@@ -166,6 +171,7 @@ impl Dataset {
         let sensor = match &opts.calibration {
             CalibrationSource::File => Calibration::load(dir.join("calibration.toml"))?,
             CalibrationSource::Preset(name) => Calibration::preset(name)?,
+            CalibrationSource::Path(path) => Calibration::load(path)?,
         };
         let levels = opts.profile.downsample_levels;
         let divisor = 1u32.checked_shl(u32::from(levels)).unwrap_or(0);
@@ -212,7 +218,8 @@ impl Dataset {
             );
             return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
         }
-        let calibration = sensor.downsampled(levels);
+        // The frames `load_frame` gives are registered, so their calibration has no depth camera.
+        let calibration = Calibration { depth: None, ..sensor.downsampled(levels) };
         let profile = opts.profile;
         Ok(Self { dir: dir.to_owned(), frames, skipped, groundtruth, sensor, calibration, profile })
     }
@@ -249,7 +256,8 @@ impl Dataset {
         self.groundtruth.as_ref()
     }
 
-    /// The calibration at the processing profile's resolution (what the core must use).
+    /// The calibration at the processing profile's resolution (what the core must use; its
+    /// `depth` is `None`, as the frames are registered).
     pub fn calibration(&self) -> &Calibration {
         &self.calibration
     }
@@ -271,8 +279,9 @@ impl Dataset {
     }
 
     /// Decodes frame `index`: colour to 8-bit gray, depth as raw 16-bit, both checked against the
-    /// calibrated size and then halved `profile.downsample_levels` times by the core's 2x2
-    /// downsamplers.
+    /// calibrated size; registers the depth to the colour camera when the calibration has a
+    /// depth camera ([`registration::register_depth`]); then halves both
+    /// `profile.downsample_levels` times by the core's 2x2 downsamplers.
     ///
     /// # Errors
     /// [`DatasetError::FrameIndex`] past the end; [`DatasetError::Io`], [`DatasetError::Decode`],
@@ -285,7 +294,10 @@ impl Dataset {
             .ok_or(DatasetError::FrameIndex { index, len: self.frames.len() })?;
         let size = (self.sensor.width, self.sensor.height);
         let gray = decode::decode_gray(&frame.rgb_path, size)?;
-        let depth = decode::decode_depth(&frame.depth_path, size)?;
+        let mut depth = decode::decode_depth(&frame.depth_path, size)?;
+        if let Some(camera) = &self.sensor.depth {
+            depth = registration::register_depth(&depth, &self.sensor, camera);
+        }
         let full = OwnedFrame {
             timestamp_s: frame.rgb_timestamp_s,
             width: size.0 as usize,
