@@ -20,6 +20,10 @@
 //! - `spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]`:
 //!   the ATE of the odometry and SLAM replays over several RANSAC seeds and start frames (mean,
 //!   median, range), to tell a real accuracy change from a lucky run; see `spread.rs`.
+//! - `calibrate-depth [--dataset DIR] [--start N] [--step N]`: estimates the colour intrinsics
+//!   and the depth camera's offset of a recording whose depth is not registered to colour, from
+//!   the images, and prints a calibration file (`calibration/7scenes-kinect-v1.toml` came from
+//!   it); see `registration.rs`.
 
 mod bench;
 mod budget_doc;
@@ -28,6 +32,7 @@ mod budgets;
 mod ci;
 mod cost;
 mod firmware;
+mod registration;
 mod replay;
 mod spread;
 mod stats;
@@ -45,6 +50,7 @@ fn main() -> ExitCode {
         Some("bench-frontend") => bench::run(&args[1..]),
         Some("budgets") => budgets::run(&args[1..]),
         Some("spread") => spread::run(&args[1..]),
+        Some("calibrate-depth") => registration::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
@@ -53,7 +59,7 @@ fn main() -> ExitCode {
                  [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE]>"
+                 [--json FILE] | calibrate-depth [--dataset DIR] [--start N] [--step N]>"
             );
             return ExitCode::from(2);
         }
