@@ -237,7 +237,7 @@ fn require_valgrind() -> Result<()> {
 /// The replay under callgrind, from the workspace root; see the module docs for the command.
 fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path) -> Result<()> {
     let rel = |p: &Path| p.strip_prefix(root).unwrap_or(p).display().to_string();
-    let args = [
+    let mut args = vec![
         "--tool=callgrind".to_owned(),
         format!("--callgrind-out-file={}/callgrind.out.%p", rel(dump_dir)),
         format!("--toggle-collect={PROCESS_TOGGLE}"),
@@ -245,13 +245,6 @@ fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path
         "target/release/ferroslam-sim".to_owned(),
         "replay".to_owned(),
         opts.dataset.display().to_string(),
-    ]
-    .into_iter()
-    .chain(crate::ci::calibration_for(&opts.dataset).into_iter().flat_map(|c| {
-        // The registered calibration of 7-Scenes, as CI replays it.
-        ["--calibration".to_owned(), c.display().to_string()]
-    }))
-    .chain([
         "--out".to_owned(),
         rel(replay_dir),
         "--max-frames".to_owned(),
@@ -259,8 +252,11 @@ fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path
         // The default today; explicit so the benchmark keeps measuring the front end.
         "--mode".to_owned(),
         "odometry".to_owned(),
-    ])
-    .collect::<Vec<_>>();
+    ];
+    if let Some(c) = crate::ci::calibration_for(&opts.dataset) {
+        // The registered calibration of 7-Scenes, as CI replays it.
+        args.extend(["--calibration".to_owned(), c.display().to_string()]);
+    }
     eprintln!("$ valgrind {}", args.iter().map(|a| shell_quote(a)).collect::<Vec<_>>().join(" "));
     let start = Instant::now();
     let status = Command::new("valgrind").args(&args).current_dir(root).status();

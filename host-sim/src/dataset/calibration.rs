@@ -125,41 +125,42 @@ impl Calibration {
         let bad = |key: &'static str, value: String, reason: &'static str| {
             Err(DatasetError::CalibrationValue { path: origin.to_owned(), key, value, reason })
         };
-        let values = [self.fx, self.fy, self.cx, self.cy, self.depth_scale];
-        for (key, v) in FLOAT_KEYS.into_iter().zip(values) {
+        // Intrinsics and depth scale: finite and positive.
+        let positive = |key: &'static str, v: f32| {
             if !v.is_finite() {
                 return bad(key, v.to_string(), "must be a finite number");
             }
             if v <= 0.0 {
                 return bad(key, v.to_string(), "must be positive");
             }
+            Ok(())
+        };
+        // The principal point of a real camera is near the image centre; one outside the image is
+        // a swapped or mistyped value.
+        let inside = |(kx, ky): (&'static str, &'static str), cx: f32, cy: f32| {
+            if cx >= self.width as f32 {
+                return bad(kx, cx.to_string(), "lies outside the image width");
+            }
+            if cy >= self.height as f32 {
+                return bad(ky, cy.to_string(), "lies outside the image height");
+            }
+            Ok(())
+        };
+        let values = [self.fx, self.fy, self.cx, self.cy, self.depth_scale];
+        for (key, v) in FLOAT_KEYS.into_iter().zip(values) {
+            positive(key, v)?;
         }
         for (key, v) in [("width", self.width), ("height", self.height)] {
             if v == 0 {
                 return bad(key, v.to_string(), "must be positive");
             }
         }
-        // The principal point of a real camera is near the image centre; one outside the image is
-        // a swapped or mistyped value.
-        if self.cx >= self.width as f32 {
-            return bad("cx", self.cx.to_string(), "lies outside the image width");
-        }
-        if self.cy >= self.height as f32 {
-            return bad("cy", self.cy.to_string(), "lies outside the image height");
-        }
+        inside(("cx", "cy"), self.cx, self.cy)?;
         if let Some(d) = &self.depth {
-            let values = [d.fx, d.fy, d.cx, d.cy];
-            for (key, v) in DEPTH_KEYS.into_iter().zip(values) {
-                if !(v.is_finite() && v > 0.0) {
-                    return bad(key, v.to_string(), "must be a finite positive number");
-                }
+            for (key, v) in DEPTH_KEYS.into_iter().zip([d.fx, d.fy, d.cx, d.cy]) {
+                positive(key, v)?;
             }
-            if d.cx >= self.width as f32 {
-                return bad("depth.cx", d.cx.to_string(), "lies outside the image width");
-            }
-            if d.cy >= self.height as f32 {
-                return bad("depth.cy", d.cy.to_string(), "lies outside the image height");
-            }
+            inside(("depth.cx", "depth.cy"), d.cx, d.cy)?;
             for (key, v) in OFFSET_KEYS.into_iter().zip(d.t_m) {
                 if !(v.is_finite() && v.abs() <= MAX_OFFSET_M) {
                     return bad(key, v.to_string(), "must be a number of metres within +-1");
@@ -201,30 +202,34 @@ fn depth_camera(table: &toml::Table, path: &Path) -> Result<DepthCamera, Dataset
     let mut v = [0.0f32; 7];
     let keys = DEPTH_KEYS.into_iter().chain(OFFSET_KEYS);
     for (slot, key) in v.iter_mut().zip(keys) {
-        let short = key.trim_start_matches("depth.");
-        let value = table
-            .get(short)
-            .ok_or_else(|| DatasetError::CalibrationMissingKey { path: path.to_owned(), key })?;
-        *slot = match value {
-            toml::Value::Float(f) => *f as f32,
-            toml::Value::Integer(i) => *i as f32,
-            other => return Err(wrong_type(path, key, other, "must be a number")),
-        };
+        let (value, _) = number_key(table, path, key.trim_start_matches("depth."), key)?;
+        *slot = value as f32;
     }
     let [fx, fy, cx, cy, tx, ty, tz] = v;
     Ok(DepthCamera { fx, fy, cx, cy, t_m: [tx, ty, tz] })
 }
 
-/// A float key (a TOML float or integer), as `f32`.
-fn float_key(table: &toml::Table, path: &Path, key: &'static str) -> Result<f32, DatasetError> {
+/// The number (a TOML float or integer) under `name` in `table`, and its TOML value; `key` is
+/// what errors call it (the name with its table, e.g. `depth.fx`).
+fn number_key<'t>(
+    table: &'t toml::Table,
+    path: &Path,
+    name: &str,
+    key: &'static str,
+) -> Result<(f64, &'t toml::Value), DatasetError> {
     let value = table
-        .get(key)
+        .get(name)
         .ok_or_else(|| DatasetError::CalibrationMissingKey { path: path.to_owned(), key })?;
-    let v = match value {
-        toml::Value::Float(f) => *f,
-        toml::Value::Integer(i) => *i as f64,
-        other => return Err(wrong_type(path, key, other, "must be a number")),
-    };
+    match value {
+        toml::Value::Float(f) => Ok((*f, value)),
+        toml::Value::Integer(i) => Ok((*i as f64, value)),
+        other => Err(wrong_type(path, key, other, "must be a number")),
+    }
+}
+
+/// A float key (a TOML float or integer), as a finite positive `f32`.
+fn float_key(table: &toml::Table, path: &Path, key: &'static str) -> Result<f32, DatasetError> {
+    let (v, value) = number_key(table, path, key, key)?;
     if !v.is_finite() {
         return Err(wrong_type(path, key, value, "must be a finite number"));
     }
