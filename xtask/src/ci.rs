@@ -103,6 +103,10 @@ pub fn run_all() -> Result<()> {
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
+    step("7-Scenes depth calibration follows from the images", || {
+        let file = root().join(SEVEN_SCENES_CALIBRATION).display().to_string();
+        crate::registration::run(&["--check".to_owned(), file])
+    })?;
     step("7-Scenes replays (odometry, SLAM), accuracy bars", replay_seven_scenes_both)?;
     step("demo", || {
         cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])

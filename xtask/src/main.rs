@@ -20,10 +20,11 @@
 //! - `spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]`:
 //!   the ATE of the odometry and SLAM replays over several RANSAC seeds and start frames (mean,
 //!   median, range), to tell a real accuracy change from a lucky run; see `spread.rs`.
-//! - `calibrate-depth [--dataset DIR] [--start N] [--step N]`: estimates the colour intrinsics
-//!   and the depth camera's offset of a recording whose depth is not registered to colour, from
-//!   the images, and prints a calibration file (`calibration/7scenes-kinect-v1.toml` came from
-//!   it); see `registration.rs`.
+//! - `calibrate-depth [--dataset DIR] [--start N] [--step N] [--check FILE]`: estimates the
+//!   colour intrinsics and the depth camera's offset of a recording whose depth is not registered
+//!   to colour, from the images, and prints a calibration file
+//!   (`calibration/7scenes-kinect-v1.toml` came from it; `--check FILE` compares the estimate
+//!   with a file instead, as `ci` does); see `registration.rs`.
 
 mod bench;
 mod budget_doc;
@@ -59,7 +60,8 @@ fn main() -> ExitCode {
                  [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE] | calibrate-depth [--dataset DIR] [--start N] [--step N]>"
+                 [--json FILE] | calibrate-depth [--dataset DIR] [--start N] [--step N] \
+                 [--check FILE]>"
             );
             return ExitCode::from(2);
         }

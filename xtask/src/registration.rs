@@ -3,13 +3,18 @@
 //! (the format `ferroslam-sim replay --calibration` reads; see host-sim's `dataset::registration`).
 //!
 //! ```text
-//! cargo xtask calibrate-depth [--dataset DIR] [--start N] [--step N]
+//! cargo xtask calibrate-depth [--dataset DIR] [--start N] [--step N] [--check FILE]
 //! ```
 //!
 //! - `--dataset`: a TUM-layout folder whose `calibration.toml` holds the depth camera's
 //!   intrinsics (default: 7-Scenes, which ships its depth camera's nominal ones).
 //! - `--start`, `--step`: frames `start, start + step, ...` are used (default 0 and 25: 40 frames
 //!   of 7-Scenes).
+//! - `--check FILE`: instead of printing a calibration, compares the estimate with `FILE`'s
+//!   colour intrinsics and depth offset and fails when one differs by more than
+//!   [`CHECK_PIXELS`] or [`CHECK_METRES`]. `cargo xtask ci` checks
+//!   [`crate::ci::SEVEN_SCENES_CALIBRATION`] so, which proves the file still follows from the
+//!   images by this method (loader, registration and estimator unchanged in effect).
 //!
 //! Method. A depth edge (a pixel on the near side of a depth jump of more than
 //! [`JUMP_FRACTION`]) is an object's outline, and the colour image has an edge there too. For a
@@ -29,7 +34,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use ferroslam_core::config::VGA;
-use ferroslam_sim::dataset::{Dataset, DatasetOptions};
+use ferroslam_sim::dataset::{Calibration, Dataset, DatasetOptions};
 
 use crate::ci::{SEVEN_SCENES, root};
 
@@ -39,6 +44,15 @@ const JUMP_FRACTION: f64 = 0.08;
 const BORDER: usize = 4;
 /// Non-edge pixels sampled per edge pixel.
 const NON_EDGE_PER_EDGE: usize = 3;
+/// `--check`: most a colour intrinsic (fx, cx, cy) may differ from the file's, pixels. The
+/// estimate over three disjoint subsets of 7-Scenes spans 0.2-0.3 px per value, and differs from
+/// the file (the first implementation's rounded values) by up to 0.4 px; this allows that and
+/// the search's last step (fx 0.08 px), and catches any change that moves the estimate by more.
+pub const CHECK_PIXELS: f64 = 0.5;
+/// `--check`: most a depth offset (tx, ty) may differ from the file's, metres. The subsets span
+/// 0.6-0.8 mm and differ from the file by up to 1.0 mm (0.26 VGA px of registration error at
+/// 2 m); this allows that with the same margin as [`CHECK_PIXELS`].
+pub const CHECK_METRES: f64 = 0.0015;
 
 /// Options of `calibrate-depth`.
 #[derive(Debug, Clone)]
@@ -46,6 +60,8 @@ struct Options {
     dataset: PathBuf,
     start: usize,
     step: usize,
+    /// `--check FILE`.
+    check: Option<PathBuf>,
 }
 
 /// One frame's samples: the colour edge map and the sampled depth pixels.
@@ -87,6 +103,9 @@ pub fn run(args: &[String]) -> Result<()> {
     let nominal: Params = [depth[0], 0.0, 0.0, depth[2], depth[3]];
     let start_score = score(&nominal);
     let (p, best) = search(nominal, start_score, score);
+    if let Some(file) = &opts.check {
+        return check(file, &p);
+    }
     eprintln!(
         "{} frames (from {} every {}): edge correlation {start_score:.4} with the nominal values, \
          {best:.4} estimated",
@@ -117,6 +136,33 @@ pub fn run(args: &[String]) -> Result<()> {
         p[1],
         p[2],
     );
+    Ok(())
+}
+
+/// `--check`: the estimate `p` against `file`'s values, each within its tolerance.
+fn check(file: &std::path::Path, p: &Params) -> Result<()> {
+    let c = Calibration::load(file)?;
+    let d = c.depth.with_context(|| format!("{} has no [depth] table", file.display()))?;
+    let values = [
+        ("fx", p[0], f64::from(c.fx), CHECK_PIXELS),
+        ("cx", p[3], f64::from(c.cx), CHECK_PIXELS),
+        ("cy", p[4], f64::from(c.cy), CHECK_PIXELS),
+        ("tx", p[1], f64::from(d.t_m[0]), CHECK_METRES),
+        ("ty", p[2], f64::from(d.t_m[1]), CHECK_METRES),
+    ];
+    let mut off = Vec::new();
+    for (name, estimated, stated, tolerance) in values {
+        let diff = estimated - stated;
+        eprintln!("{name}: estimated {estimated:.5}, {} states {stated:.5}", file.display());
+        // NaN is off too.
+        if diff.is_nan() || diff.abs() > tolerance {
+            off.push(format!("{name} differs by {diff:.4} (tolerance {tolerance})"));
+        }
+    }
+    if !off.is_empty() {
+        bail!("{} does not match the estimate from the images: {}", file.display(), off.join("; "));
+    }
+    eprintln!("{}: every value within tolerance of the estimate", file.display());
     Ok(())
 }
 
@@ -277,7 +323,7 @@ fn edge_strength(gray: &[u8], w: usize, h: usize) -> Vec<f64> {
 }
 
 fn parse_args(args: &[String]) -> Result<Options> {
-    let mut opts = Options { dataset: root().join(SEVEN_SCENES), start: 0, step: 25 };
+    let mut opts = Options { dataset: root().join(SEVEN_SCENES), start: 0, step: 25, check: None };
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = || it.next().with_context(|| format!("{a} needs a value"));
@@ -285,9 +331,10 @@ fn parse_args(args: &[String]) -> Result<Options> {
             "--dataset" => opts.dataset = PathBuf::from(value()?),
             "--start" => opts.start = value()?.parse().context("--start: a frame index")?,
             "--step" => opts.step = value()?.parse().context("--step: a frame count")?,
+            "--check" => opts.check = Some(PathBuf::from(value()?)),
             other => bail!(
                 "unknown argument {other}; usage: cargo xtask calibrate-depth [--dataset DIR] \
-                 [--start N] [--step N]"
+                 [--start N] [--step N] [--check FILE]"
             ),
         }
     }
@@ -307,6 +354,26 @@ mod tests {
         assert!((correlation(a.iter().copied()) - 1.0).abs() < 1e-12);
         let c = [(1.0, 1.0), (2.0, 1.0)];
         assert_eq!(correlation(c.iter().copied()), 0.0);
+    }
+
+    #[test]
+    fn check_passes_within_tolerance_and_names_what_is_off() {
+        let file = root().join(crate::ci::SEVEN_SCENES_CALIBRATION);
+        // fx, tx, ty, cx, cy as the file states them, then each nudged.
+        let stated: Params = [526.3, -0.0325, 0.0062, 322.7, 236.0];
+        check(&file, &stated).unwrap();
+        let mut near = stated;
+        near[0] += 0.9 * CHECK_PIXELS;
+        near[2] -= 0.9 * CHECK_METRES;
+        check(&file, &near).unwrap();
+        let mut far = stated;
+        far[4] += 1.1 * CHECK_PIXELS;
+        far[1] += 1.1 * CHECK_METRES;
+        let e = check(&file, &far).unwrap_err().to_string();
+        assert!(e.contains("cy differs") && e.contains("tx differs"), "{e}");
+        assert!(!e.contains("fx") && !e.contains("ty"), "{e}");
+        let nan: Params = [f64::NAN, -0.0325, 0.0062, 322.7, 236.0];
+        assert!(check(&file, &nan).unwrap_err().to_string().contains("fx differs"));
     }
 
     #[test]
