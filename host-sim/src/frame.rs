@@ -136,7 +136,18 @@ mod tests {
             OwnedFrame { timestamp_s: 2.0, width: 8, height: 8, gray, depth, depth_scale: 5000.0 };
         let q = halve_frame(&f.view().unwrap(), 2).unwrap();
         assert_eq!((q.width, q.height, q.timestamp_s, q.depth_scale), (2, 2, 2.0, 5000.0));
-        assert!(q.depth.iter().all(|d| f.depth.contains(d)), "depth samples are never blended");
+        // One surface (1000 to 1063 raw) with holes: a block of four valid samples may give the
+        // mean of its middle two, which lies on that surface, near a sample.
+        let near_a_sample =
+            |d: &u16| f.depth.iter().any(|s| *s != 0 && u32::from(s.abs_diff(*d)) * 32 <= 1000);
+        assert!(q.depth.iter().all(near_a_sample), "{:?}", q.depth);
+        // Two surfaces (1.0 m and 3.0 m in a checkerboard of 1 x 1 pixel squares): every sample is
+        // one of the two, never a blend between them.
+        let depth: Vec<u16> =
+            (0..64).map(|i| if (i + i / 8) % 2 == 0 { 1000 } else { 3000 }).collect();
+        let edges = OwnedFrame { depth, ..f.clone() };
+        let q = halve_frame(&edges.view().unwrap(), 2).unwrap();
+        assert!(q.depth.iter().all(|d| [1000, 3000].contains(d)), "{:?}", q.depth);
         assert_eq!(halve_frame(&f.view().unwrap(), 0).unwrap(), f);
         let tiny = OwnedFrame { width: 1, height: 1, gray: vec![0], depth: vec![0], ..f };
         assert!(halve_frame(&tiny.view().unwrap(), 1).is_err());
