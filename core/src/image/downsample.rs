@@ -134,10 +134,9 @@ pub fn downsample_gray_2x(src: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Resu
 fn depth_block([[a, b], [c, d]]: [[u16; 2]; 2]) -> u16 {
     let n = u8::from(a != 0) + u8::from(b != 0) + u8::from(c != 0) + u8::from(d != 0);
     if n == 4 {
-        // With the pairs ordered, the two middle samples are the larger pair minimum and the
+        // All valid: no shift needed. The two middle samples are the larger pair minimum and the
         // smaller pair maximum (`s[0]` and `s[3]` are the other two), in some order.
-        let (p, q) = (a.min(b), a.max(b));
-        let (r, t) = (c.min(d), c.max(d));
+        let ((p, q), (r, t)) = ordered_pairs([a, b, c, d]);
         let (m, k) = (p.max(r), q.min(t));
         let (s1, s2) = (m.min(k), m.max(k));
         if u32::from(s2 - s1) * 32 <= u32::from(s1) {
@@ -158,10 +157,16 @@ fn depth_block([[a, b], [c, d]]: [[u16; 2]; 2]) -> u16 {
 /// 7 min/max operations instead of a full 10-operation sort: after ordering the pairs `(a, b)` and
 /// `(c, d)`, the smallest is the smaller pair minimum, and the second smallest is the larger pair
 /// minimum unless the smallest's partner is smaller still, i.e. `min(max(p, r), min(q, t))`.
-fn two_smallest([a, b, c, d]: [u16; 4]) -> (u16, u16) {
-    let (p, q) = (a.min(b), a.max(b));
-    let (r, t) = (c.min(d), c.max(d));
+fn two_smallest(block: [u16; 4]) -> (u16, u16) {
+    let ((p, q), (r, t)) = ordered_pairs(block);
     (p.min(r), p.max(r).min(q.min(t)))
+}
+
+/// The pairs `(a, b)` and `(c, d)` each in ascending order: the first step of both selections
+/// above.
+#[inline(always)]
+fn ordered_pairs([a, b, c, d]: [u16; 4]) -> ((u16, u16), (u16, u16)) {
+    ((a.min(b), a.max(b)), (c.min(d), c.max(d)))
 }
 
 /// Halves a raw depth image (`0` = no reading) without inventing depth across object edges: each
