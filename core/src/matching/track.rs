@@ -171,6 +171,11 @@ pub struct PatchTrack {
 /// for their gradients (`S = N + 2` per side), gray offset removed; the grid's zero-mean values and
 /// their norm. Every size is fixed at compile time (see [`track_patch`]'s dispatch), so the loops
 /// unroll and index without checks.
+///
+/// This, [`Steepest`] and [`Quantized`] are filled in place (`EMPTY`, then a `&mut self` method)
+/// rather than returned: returned by value, each was built on the stack and copied into its
+/// caller's, and on the Cortex-M4 those copies (`__aeabi_memcpy4`, 320 k instructions a frame on
+/// 7-Scenes) were a twentieth of the front end.
 struct Template<const N: usize, const S: usize> {
     values: [[f32; S]; S],
     zero_mean: [[f32; N]; N],
@@ -178,9 +183,12 @@ struct Template<const N: usize, const S: usize> {
 }
 
 impl<const N: usize, const S: usize> Template<N, S> {
-    /// `img` sampled at `centre + a_inv q` for the grid offsets `q` (margin included); `None` when
-    /// a sample would leave the image.
-    fn warp(img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2) -> Option<Self> {
+    /// All zero, to be filled by [`Self::warp`].
+    const EMPTY: Self = Self { values: [[0.0; S]; S], zero_mean: [[0.0; N]; N], norm: 0.0 };
+
+    /// Fills `self` with `img` sampled at `centre + a_inv q` for the grid offsets `q` (margin
+    /// included); `false` (and `self` unspecified) when a sample would leave the image.
+    fn warp(&mut self, img: &GrayView<'_>, centre: (f32, f32), a_inv: &Mat2) -> bool {
         // A linear map sends the square's corners to the extremes: check them once.
         let m = (S / 2) as f32;
         let (w, h) = img.size();
@@ -190,7 +198,7 @@ impl<const N: usize, const S: usize> Template<N, S> {
             let (x, y) = (centre.0 + dx, centre.1 + dy);
             // NaN fails the comparisons.
             if !(x >= 0.0 && y >= 0.0 && x < x_max && y < y_max) {
-                return None;
+                return false;
             }
         }
         let (data, stride) = (img.data(), img.stride());
@@ -200,8 +208,7 @@ impl<const N: usize, const S: usize> Template<N, S> {
         // 1/65536 px rounding of a step, times 14 steps, cannot leave the image.
         let fixed = |v: f32| libm::roundf(v * FIXED_ONE) as i32;
         let (step_x, step_y) = (fixed(a_inv[0][0]), fixed(a_inv[1][0]));
-        let mut values = [[0.0f32; S]; S];
-        for (j, out_row) in values.iter_mut().enumerate() {
+        for (j, out_row) in self.values.iter_mut().enumerate() {
             let (dx, dy) = mat_apply(a_inv, (-m, j as f32 - m));
             let (mut x, mut y) = (fixed(centre.0 + dx), fixed(centre.1 + dy));
             for v in out_row.iter_mut() {
@@ -209,9 +216,8 @@ impl<const N: usize, const S: usize> Template<N, S> {
                 (x, y) = (x.wrapping_add(step_x), y.wrapping_add(step_y));
             }
         }
-        let mut zero_mean = [[0.0f32; N]; N];
         let mut sum = 0.0f32;
-        for (z_row, v_row) in zero_mean.iter_mut().zip(&values[1..]) {
+        for (z_row, v_row) in self.zero_mean.iter_mut().zip(&self.values[1..]) {
             for (z, &v) in z_row.iter_mut().zip(&v_row[1..]) {
                 *z = v;
                 sum += v;
@@ -219,11 +225,12 @@ impl<const N: usize, const S: usize> Template<N, S> {
         }
         let mean = sum / (N * N) as f32;
         let mut ss = 0.0f32;
-        for z in zero_mean.as_flattened_mut() {
+        for z in self.zero_mean.as_flattened_mut() {
             *z -= mean;
             ss += *z * *z;
         }
-        Some(Self { values, zero_mean, norm: libm::sqrtf(ss) })
+        self.norm = libm::sqrtf(ss);
+        true
     }
 }
 
@@ -239,10 +246,13 @@ struct Quantized<const N: usize> {
 }
 
 impl<const N: usize> Quantized<N> {
-    fn new<const S: usize>(t: &Template<N, S>) -> Self {
-        let mut values = [[0i16; N]; N];
+    /// All zero, to be filled by [`Self::fill`].
+    const EMPTY: Self = Self { values: [[0; N]; N], sum: 0, var_n2: 0, root_var_n2: 0.0 };
+
+    /// Fills `self` with the rounded grid of `t` and its sums.
+    fn fill<const S: usize>(&mut self, t: &Template<N, S>) {
         let (mut qs, mut qss) = (0i64, 0i64);
-        for (q_row, v_row) in values.iter_mut().zip(&t.values[1..]) {
+        for (q_row, v_row) in self.values.iter_mut().zip(&t.values[1..]) {
             for (q, &v) in q_row.iter_mut().zip(&v_row[1..]) {
                 // Values are in -128..128, so `v + 128.5` is positive and truncation rounds it
                 // half up: the same bits on every target, without a call to `roundf`.
@@ -254,7 +264,8 @@ impl<const N: usize> Quantized<N> {
         }
         // At most 169 * 169 * 128^2: far inside i64.
         let var_n2 = (N * N) as i64 * qss - qs * qs;
-        Self { values, sum: qs, var_n2, root_var_n2: libm::sqrtf(exact_f32(var_n2)) }
+        (self.sum, self.var_n2) = (qs, var_n2);
+        self.root_var_n2 = libm::sqrtf(exact_f32(var_n2));
     }
 
     /// ZNCC against the target's pixels of the `N x N` block whose top-left pixel is `(x0, y0)`
@@ -296,7 +307,18 @@ impl<const N: usize> Quantized<N> {
 /// the integer either way), but the Cortex-M4 converts an `i32` in one instruction and an `i64`
 /// in a library call.
 fn exact_f32(v: i64) -> f32 {
-    i32::try_from(v).map_or(v as f32, |v| v as f32)
+    match i32::try_from(v) {
+        Ok(v) => v as f32,
+        Err(_) => wide_f32(v),
+    }
+}
+
+/// `v as f32` out of line: written inline, the compiler converted both ways and kept one, so the
+/// library call ran for every ZNCC (146 k instructions a frame on the Cortex-M4, 7-Scenes).
+#[cold]
+#[inline(never)]
+fn wide_f32(v: i64) -> f32 {
+    v as f32
 }
 
 /// Widest search window of [`track_patch`], pixels: `2R + 2h + 1` at the largest `R` and `h`.
@@ -433,7 +455,8 @@ fn search<const N: usize, const S: usize>(
     let (x0, y0) = ((px - reach) as usize, (py - reach) as usize);
     let (data, stride) = (target.data(), target.stride());
     let step = params.search_step;
-    let q = Quantized::new(t);
+    let mut q = Quantized::EMPTY;
+    q.fill(t);
     let width = 2 * r + N;
     let mut columns = ColumnSums::<N>::new();
     let mut score = |ix: usize, iy: usize| {
@@ -534,12 +557,16 @@ struct Steepest<const N: usize> {
 }
 
 impl<const N: usize> Steepest<N> {
-    /// Central-difference gradients of `t`, with the offset (the mean) and the gain (the
-    /// template itself) projected out (variable projection of `I(x + c) = g T(x) + b`); `None`
-    /// when both directions do not carry gradient (an edge alone slides along itself).
-    fn new<const S: usize>(t: &Template<N, S>) -> Option<Self> {
-        let mut gx = [[0.0f32; N]; N];
-        let mut gy = [[0.0f32; N]; N];
+    /// All zero, to be filled by [`Self::fill`].
+    const EMPTY: Self =
+        Self { gx: [[0.0; N]; N], gy: [[0.0; N]; N], hxx: 0.0, hxy: 0.0, hyy: 0.0, det: 0.0 };
+
+    /// Fills `self` with the central-difference gradients of `t`, with the offset (the mean) and
+    /// the gain (the template itself) projected out (variable projection of
+    /// `I(x + c) = g T(x) + b`); `false` (and `self` unspecified) when both directions do not
+    /// carry gradient (an edge alone slides along itself).
+    fn fill<const S: usize>(&mut self, t: &Template<N, S>) -> bool {
+        let Self { gx, gy, .. } = self;
         for j in 0..N {
             let (up, mid, down) = (&t.values[j], &t.values[j + 1], &t.values[j + 2]);
             for i in 0..N {
@@ -549,7 +576,7 @@ impl<const N: usize> Steepest<N> {
         }
         let len = (N * N) as f32;
         let norm2 = t.norm * t.norm;
-        for g in [&mut gx, &mut gy] {
+        for g in [&mut *gx, &mut *gy] {
             let mean = g.as_flattened().iter().sum::<f32>() / len;
             let mut coeff = 0.0f32;
             for (v, z) in g.as_flattened().iter().zip(t.zero_mean.as_flattened()) {
@@ -567,10 +594,8 @@ impl<const N: usize> Steepest<N> {
             hyy += y * y;
         }
         let det = hxx * hyy - hxy * hxy;
-        if det.is_nan() || det <= 1e-6 * (hxx + hyy) * (hxx + hyy) {
-            return None;
-        }
-        Some(Self { gx, gy, hxx, hxy, hyy, det })
+        (self.hxx, self.hxy, self.hyy, self.det) = (hxx, hxy, hyy, det);
+        !(det.is_nan() || det <= 1e-6 * (hxx + hyy) * (hxx + hyy))
     }
 }
 
@@ -630,6 +655,7 @@ impl Moments {
     }
 
     /// Row `y` of `img` from column `bx`, interpolated at `+fx` (minus the gray offset).
+    #[inline(always)]
     fn row<const N: usize>(img: &GrayView<'_>, bx: usize, y: usize, fx: f32) -> Option<[f32; N]> {
         let px = img.row(y)?.get(bx..=bx + N)?;
         let mut out = [0.0f32; N];
@@ -656,7 +682,10 @@ fn refine<const N: usize, const S: usize>(
     start: (f32, f32),
     params: &TrackParams,
 ) -> Result<((f32, f32), f32), MatchError> {
-    let sd = Steepest::new(t).ok_or(MatchError::RefinementFailed)?;
+    let mut sd = Steepest::EMPTY;
+    if !sd.fill(t) {
+        return Err(MatchError::RefinementFailed);
+    }
     let half = (N / 2) as f32;
     let len = (N * N) as f32;
     let moments = |c: (f32, f32)| {
@@ -707,8 +736,10 @@ fn track_fixed<const N: usize, const S: usize>(
     predicted: (f32, f32),
     params: &TrackParams,
 ) -> Result<PatchTrack, MatchError> {
-    let t = Template::<N, S>::warp(template_img, centre, a_inv)
-        .ok_or(MatchError::TemplateOutOfImage)?;
+    let mut t = Template::<N, S>::EMPTY;
+    if !t.warp(template_img, centre, a_inv) {
+        return Err(MatchError::TemplateOutOfImage);
+    }
     let std_dev = t.norm / N as f32;
     if std_dev.is_nan() || std_dev < params.min_template_std {
         return Err(MatchError::FlatTemplate { std_dev });
