@@ -180,14 +180,23 @@ impl<'a> Level<'a> {
         }
         let (x0, y0) = (u as usize, v as usize);
         let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-        let bil = |x: usize, y: usize| {
-            let top = self.at(x, y) + fx * (self.at(x + 1, y) - self.at(x, y));
-            let bot = self.at(x, y + 1) + fx * (self.at(x + 1, y + 1) - self.at(x, y + 1));
+        // The 4x4 neighbourhood, read once: rows `y0 - 1..=y0 + 2`, columns `x0 - 1..=x0 + 2`.
+        let mut n = [[0.0f32; 4]; 4];
+        for (k, row) in n.iter_mut().enumerate() {
+            let start = (y0 + k - 1) * self.w + x0 - 1;
+            let px: &[u8; 4] = self.data.get(start..start + 4)?.try_into().ok()?;
+            *row = px.map(f32::from);
+        }
+        // Bilinear at the pixel `(x0 + c - 1, y0 + r - 1)` plus `(fx, fy)`.
+        let bil = |c: usize, r: usize| {
+            let (p00, p10, p01, p11) = (n[r][c], n[r][c + 1], n[r + 1][c], n[r + 1][c + 1]);
+            let top = p00 + fx * (p10 - p00);
+            let bot = p01 + fx * (p11 - p01);
             top + fy * (bot - top)
         };
-        let value = bil(x0, y0);
-        let gx = (bil(x0 + 1, y0) - bil(x0 - 1, y0)) * 0.5;
-        let gy = (bil(x0, y0 + 1) - bil(x0, y0 - 1)) * 0.5;
+        let value = bil(1, 1);
+        let gx = (bil(2, 1) - bil(0, 1)) * 0.5;
+        let gy = (bil(1, 2) - bil(1, 0)) * 0.5;
         Some((value, gx, gy))
     }
 }
@@ -241,8 +250,10 @@ fn normal_equations(
     (a, b): (f32, f32),
 ) -> Option<(Matrix5<f32>, Vector5<f32>, usize, f32)> {
     let rot = r.to_rotation_matrix();
-    let mut h = Matrix5::<f32>::zeros();
-    let mut g = Vector5::<f32>::zeros();
+    // `H` is symmetric: its upper triangle is summed (row by row) and mirrored at the end. Each
+    // entry gets the same products in the same order as a full `j j^T` would give it.
+    let mut upper = [0.0f32; 15];
+    let mut g = [0.0f32; 5];
     let (mut n, mut sq) = (0usize, 0.0f32);
     for y in 1..lp.h - 1 {
         for x in 1..lp.w - 1 {
@@ -260,18 +271,40 @@ fn normal_equations(
             let du = Vector3::new(lc.fx * iz, 0.0, -lc.fx * p.x * iz * iz);
             let dv = Vector3::new(0.0, lc.fy * iz, -lc.fy * p.y * iz * iz);
             let dw = -(du * gx + dv * gy).transpose() * hat(&p.coords);
-            let j = Vector5::new(dw[0], dw[1], dw[2], -ip, -1.0);
+            let j = [dw[0], dw[1], dw[2], -ip, -1.0];
             let abs = res.abs();
             let wgt = if abs <= HUBER_GRAY { 1.0 } else { HUBER_GRAY / abs };
-            h += j * j.transpose() * wgt;
-            g += j * (res * wgt);
+            let mut k = 0;
+            for (i, &ji) in j.iter().enumerate() {
+                for &jl in &j[i..] {
+                    if let Some(e) = upper.get_mut(k) {
+                        *e += ji * jl * wgt;
+                    }
+                    k += 1;
+                }
+            }
+            let rw = res * wgt;
+            for (gi, &ji) in g.iter_mut().zip(&j) {
+                *gi += ji * rw;
+            }
             n += 1;
             sq += res * res;
+        }
+    }
+    let mut h = Matrix5::<f32>::zeros();
+    let mut k = 0;
+    for i in 0..5 {
+        for l in i..5 {
+            let e = upper.get(k).copied().unwrap_or(0.0);
+            h[(i, l)] = e;
+            h[(l, i)] = e;
+            k += 1;
         }
     }
     // A tiny diagonal keeps the photometric block positive definite on flat images.
     for i in 0..5 {
         h[(i, i)] += 1.0e-3;
     }
+    let g = Vector5::from(g);
     h.iter().all(|v| v.is_finite()).then_some((h, g, n, sq))
 }
