@@ -104,8 +104,7 @@ pub fn run_all() -> Result<()> {
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
     step("7-Scenes depth calibration follows from the images", || {
-        let file = root().join(SEVEN_SCENES_CALIBRATION).display().to_string();
-        crate::registration::run(&["--check".to_owned(), file])
+        crate::registration::check_file(root().join(SEVEN_SCENES_CALIBRATION))
     })?;
     step("7-Scenes replays (odometry, SLAM), accuracy bars", replay_seven_scenes_both)?;
     step("demo", || {

@@ -64,6 +64,13 @@ struct Options {
     check: Option<PathBuf>,
 }
 
+impl Default for Options {
+    /// 7-Scenes, frames 0, 25, 50, ..., printing the estimate.
+    fn default() -> Self {
+        Self { dataset: root().join(SEVEN_SCENES), start: 0, step: 25, check: None }
+    }
+}
+
 /// One frame's samples: the colour edge map and the sampled depth pixels.
 struct FrameSamples {
     width: usize,
@@ -83,7 +90,21 @@ type Params = [f64; 5];
 /// # Errors
 /// Bad arguments, an unreadable dataset, or frames without depth edges.
 pub fn run(args: &[String]) -> Result<()> {
-    let opts = parse_args(args)?;
+    estimate(&parse_args(args)?)
+}
+
+/// `calibrate-depth --check file` with the other options at their defaults (what `cargo xtask
+/// ci` runs).
+///
+/// # Errors
+/// As [`run`], and an estimate outside the tolerances of `file`'s values.
+pub fn check_file(file: PathBuf) -> Result<()> {
+    estimate(&Options { check: Some(file), ..Options::default() })
+}
+
+/// Estimates the calibration of `opts.dataset`, then prints it or checks it against
+/// `opts.check`.
+fn estimate(opts: &Options) -> Result<()> {
     let vga = DatasetOptions { profile: VGA, ..DatasetOptions::default() };
     let dataset = Dataset::open(&opts.dataset, &vga)?;
     let c = *dataset.sensor_calibration();
@@ -323,7 +344,7 @@ fn edge_strength(gray: &[u8], w: usize, h: usize) -> Vec<f64> {
 }
 
 fn parse_args(args: &[String]) -> Result<Options> {
-    let mut opts = Options { dataset: root().join(SEVEN_SCENES), start: 0, step: 25, check: None };
+    let mut opts = Options::default();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = || it.next().with_context(|| format!("{a} needs a value"));
