@@ -80,11 +80,25 @@ pub struct Tunables {
     /// Maximum timestamp difference when associating colour, depth and ground truth, in seconds
     /// (the TUM benchmark's and evo's 0.02 s).
     pub association_max_dt_s: f64,
+    /// The depth sensor's noise as the standard deviation of inverse depth, in 1/m: a reading at
+    /// `z` metres has `sigma_z = k z^2`. Pose estimation and bundle adjustment weigh their
+    /// inverse-depth residuals by it ([`PoseParams::depth_noise_coeff_per_m`]). Default 3e-3,
+    /// a Kinect v1-class structured-light sensor with a margin for its quantization and for
+    /// depth read a fraction of a pixel off the tracked point; a sensor with better depth should
+    /// say so, or its depth is under-weighted against the pixels.
+    ///
+    /// [`PoseParams::depth_noise_coeff_per_m`]: crate::tracking::PoseParams::depth_noise_coeff_per_m
+    pub depth_noise_coeff_per_m: f32,
 }
 
 impl Default for Tunables {
     fn default() -> Self {
-        Self { depth_min_m: 0.3, depth_max_m: 4.0, association_max_dt_s: 0.02 }
+        Self {
+            depth_min_m: 0.3,
+            depth_max_m: 4.0,
+            association_max_dt_s: 0.02,
+            depth_noise_coeff_per_m: crate::tracking::PoseParams::DEFAULT.depth_noise_coeff_per_m,
+        }
     }
 }
 

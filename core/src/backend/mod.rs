@@ -42,7 +42,7 @@ use core::fmt;
 
 use heapless::Vec;
 
-use crate::config::capacity;
+use crate::config::{Tunables, capacity};
 use crate::geometry::PinholeCamera;
 use crate::map::{KeyFrameId, LandmarkId, Map};
 use crate::optim::{
@@ -100,6 +100,17 @@ impl BackendParams {
         segment_keyframes: capacity::SEGMENT_MAX_KEYFRAMES as u32,
         global_enabled: true,
     };
+
+    /// These parameters with the depth noise of `tunables` in both solvers (the front end takes
+    /// it with `FrontendParams::with_tunables`, so tracking and BA weigh depth alike).
+    pub const fn with_tunables(self, tunables: &Tunables) -> Self {
+        let k = tunables.depth_noise_coeff_per_m;
+        Self {
+            local: BaParams { depth_noise_coeff_per_m: k, ..self.local },
+            global: BaParams { depth_noise_coeff_per_m: k, ..self.global },
+            ..self
+        }
+    }
 
     /// Whether every value is in range.
     pub fn is_valid(&self) -> bool {

@@ -24,6 +24,18 @@ fn with_no_solve_under_way_the_split_does_nothing() {
     assert!(!backend.is_busy());
 }
 
+/// The sensor's depth noise reaches both solvers; the default sensor is the default weighting.
+#[test]
+fn tunables_set_the_depth_noise_of_both_solvers() {
+    let default = crate::config::Tunables::default();
+    assert_eq!(BackendParams::DEFAULT.with_tunables(&default), BackendParams::DEFAULT);
+    let quiet = crate::config::Tunables { depth_noise_coeff_per_m: 2.0e-4, ..default };
+    let p = BackendParams::DEFAULT.with_tunables(&quiet);
+    assert_eq!(p.local.depth_noise_coeff_per_m, 2.0e-4);
+    assert_eq!(p.global.depth_noise_coeff_per_m, 2.0e-4);
+    assert!(p.is_valid());
+}
+
 #[test]
 fn advance_solve_checks_the_parameters_like_step() {
     let params = BackendParams { segment_keyframes: 0, ..BackendParams::DEFAULT };

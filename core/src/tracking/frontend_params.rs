@@ -138,9 +138,17 @@ impl FrontendParams {
         map_reuse: false,
     };
 
-    /// These parameters with the depth range of `tunables`.
+    /// These parameters with the depth range and the depth noise of `tunables`.
     pub const fn with_tunables(self, tunables: &Tunables) -> Self {
-        Self { depth_min_m: tunables.depth_min_m, depth_max_m: tunables.depth_max_m, ..self }
+        Self {
+            depth_min_m: tunables.depth_min_m,
+            depth_max_m: tunables.depth_max_m,
+            pose: PoseParams {
+                depth_noise_coeff_per_m: tunables.depth_noise_coeff_per_m,
+                ..self.pose
+            },
+            ..self
+        }
     }
 
     /// Whether the front end's own values are in range (detection, matching and pose parameters

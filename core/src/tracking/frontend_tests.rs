@@ -242,7 +242,11 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     assert_eq!(p.pose, super::super::PoseParams::default());
     assert!(p.is_valid());
     let t = crate::config::Tunables::default();
-    assert_eq!(p.with_tunables(&t), p, "depth range as the Tunables");
+    assert_eq!(p.with_tunables(&t), p, "depth range and depth noise as the Tunables");
+    let quiet = crate::config::Tunables { depth_noise_coeff_per_m: 2.0e-4, ..t };
+    let q = p.with_tunables(&quiet);
+    assert_eq!(q.pose.depth_noise_coeff_per_m, 2.0e-4, "the sensor's depth noise reaches the pose");
+    assert_eq!(super::super::PoseParams { depth_noise_coeff_per_m: 3.0e-3, ..q.pose }, p.pose);
     let qvga = core::mem::size_of::<QvgaFrontend>();
     let vga = core::mem::size_of::<VgaFrontend>();
     std::println!("QvgaFrontend {qvga} bytes, VgaFrontend {vga} bytes");

@@ -7,7 +7,8 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use ferroslam_core::config::Profile;
+use ferroslam_core::backend::BackendParams;
+use ferroslam_core::config::{Profile, Tunables};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::image::{ImageError, total_variation};
@@ -284,13 +285,14 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    run_seeded(source, expected, cam, profile, mode, None)
+    run_seeded(source, expected, cam, profile, mode, None, &Tunables::default())
 }
 
 /// [`run_odometry`] with the front end's RANSAC seeded by `rng_seed` (`None`: the core's default
-/// seed, `FrontendParams::rng_seed`); everything else as the mode's defaults (odometry:
-/// `FrontendParams::DEFAULT`; SLAM: `system::SLAM_FRONTEND`). Runs with other seeds show how much
-/// of an accuracy figure is chance.
+/// seed, `FrontendParams::rng_seed`) and the sensor described by `tunables` (depth range and depth
+/// noise, given to the front end and the back end); everything else as the mode's defaults
+/// (odometry: `FrontendParams::DEFAULT`; SLAM: `system::SLAM_FRONTEND` and
+/// `BackendParams::DEFAULT`). Runs with other seeds show how much of an accuracy figure is chance.
 ///
 /// # Errors
 /// As [`run_odometry`].
@@ -301,6 +303,7 @@ pub fn run_seeded<S>(
     profile: Profile,
     mode: TrackMode,
     rng_seed: Option<u64>,
+    tunables: &Tunables,
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
@@ -310,9 +313,10 @@ where
         if let Some(seed) = rng_seed {
             p.rng_seed = seed;
         }
-        p
+        p.with_tunables(tunables)
     };
     let (odometry, slam) = (seeded(FrontendParams::DEFAULT), seeded(SLAM_FRONTEND));
+    let backend = BackendParams::DEFAULT.with_tunables(tunables);
     match (mode, profile.downsample_levels == 0) {
         (TrackMode::Odometry, true) => {
             odometry_with::<640, 480, S>(source, expected, cam, odometry)
@@ -321,10 +325,10 @@ where
             odometry_with::<320, 240, S>(source, expected, cam, odometry)
         }
         (TrackMode::Slam { quota, schedule }, true) => {
-            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, slam)
+            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, (slam, backend))
         }
         (TrackMode::Slam { quota, schedule }, false) => {
-            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, slam)
+            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, (slam, backend))
         }
     }
 }

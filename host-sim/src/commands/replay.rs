@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use std::time::Instant;
 
-use ferroslam_core::config::{Profile, QVGA, VGA};
+use ferroslam_core::config::{Profile, QVGA, Tunables, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
@@ -139,7 +139,15 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
         let mut reader = dataset.into_reader(8);
         let started = Instant::now();
-        let run = datapath::run_seeded(&mut reader, frames, &cam, profile, track_mode, args.seed)?;
+        let run = datapath::run_seeded(
+            &mut reader,
+            frames,
+            &cam,
+            profile,
+            track_mode,
+            args.seed,
+            &Tunables::default(),
+        )?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = run_note(args.mode, profile.name, (run.data.width, run.data.height));
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;

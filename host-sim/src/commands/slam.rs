@@ -197,8 +197,8 @@ fn solve_finished(joined: std::thread::Result<Result<bool, BackendError>>) -> Re
     joined.map_err(|_| anyhow!("back-end thread panicked"))?.map_err(backend_error)
 }
 
-/// Runs `source` through a boxed `Slam<W, H>` (front end with `frontend`, back end with its
-/// defaults) with `quota` back-end units after each frame, the back end scheduled by `schedule`.
+/// Runs `source` through a boxed `Slam<W, H>` (front end with `frontend`, back end with
+/// `backend`) with `quota` back-end units after each frame, the back end scheduled by `schedule`.
 ///
 /// # Errors
 /// As [`run_with`]; a back-end error.
@@ -208,14 +208,14 @@ pub fn run<const W: usize, const H: usize, S>(
     cam: &PinholeCamera,
     quota: u32,
     schedule: Schedule,
-    frontend: FrontendParams,
+    (frontend, backend): (FrontendParams, BackendParams),
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     // About a megabyte: boxed, never on the stack.
-    let mut slam: Box<Slam<W, H>> = Box::new(Slam::with_params(frontend, BackendParams::DEFAULT));
+    let mut slam: Box<Slam<W, H>> = Box::new(Slam::with_params(frontend, backend));
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     // The latest pose of every keyframe seen: keyframes the map retires keep their last one.
     let mut keyframe_pose: HashMap<KeyFrameId, (f64, Pose)> = HashMap::new();
