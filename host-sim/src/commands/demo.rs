@@ -169,6 +169,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 /// the tracked pixel and `z_true` the landmark's ray-cast depth at the true pose, was 1.4e-4
 /// (68% within 2.2e-4). It is not zero: depth is quantized to 0.2 mm, halved by a 2 x 2 median,
 /// and read a fraction of a pixel off the true point on sloped surfaces.
+///
+/// Demo ATE at QVGA over 8 runs starting at frames 0, 3, ..., 21 (same front end and back end as
+/// `demo`, sequential schedule): odometry mean 2.89 mm (max 3.65) with this value, against
+/// 9.24 mm (max 18.89) with the Kinect default 3e-3 (4.94 mm at 3e-4, 2.42 mm at 1e-4); SLAM mean
+/// 2.69 mm (max 4.44) against 7.78 mm (max 13.27).
 const DEMO_DEPTH_NOISE_FLOOR: f32 = 2.0e-4;
 
 /// The depth noise the demo tells the core ([`Tunables::depth_noise_coeff_per_m`]): what the
