@@ -325,10 +325,10 @@ where
             odometry_with::<320, 240, S>(source, expected, cam, odometry)
         }
         (TrackMode::Slam { quota, schedule }, true) => {
-            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, (slam, backend))
+            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, slam, backend)
         }
         (TrackMode::Slam { quota, schedule }, false) => {
-            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, (slam, backend))
+            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, slam, backend)
         }
     }
 }

@@ -208,7 +208,8 @@ pub fn run<const W: usize, const H: usize, S>(
     cam: &PinholeCamera,
     quota: u32,
     schedule: Schedule,
-    (frontend, backend): (FrontendParams, BackendParams),
+    frontend: FrontendParams,
+    backend: BackendParams,
 ) -> Result<OdometryRun>
 where
     S: FrameSource,
