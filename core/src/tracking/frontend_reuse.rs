@@ -72,11 +72,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             tracked.get(slot / 32).is_none_or(|w| w & (1 << (slot % 32)) != 0)
         };
         // Each feature's depth and descriptor, computed when first needed.
-        let mut cache: Vec<
-            Option<(f32, Option<Descriptor>)>,
-            { capacity::MAX_FEATURES_PER_FRAME },
-        > = Vec::new();
-        let _ = cache.resize(self.features.len(), None);
+        let mut cache = FeatureCache::new();
         let mut found: Vec<(LandmarkId, usize, f32), MAX_REACQUIRED> = Vec::new();
         for (id, lm) in map.landmarks() {
             if found.is_full() {
@@ -101,11 +97,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 {
                     continue;
                 }
-                let Some(slot) = cache.get_mut(i) else { continue };
-                let &mut (zf, df) = slot.get_or_insert_with(|| {
+                let Some((zf, df)) = cache.get_or_compute(i, || {
                     let zf = frame.depth.depth_at(f.x, f.y, self.params.max_relative_depth_step);
                     (zf.unwrap_or(0.0), Descriptor::of(&frame.gray, f.x, f.y))
-                });
+                }) else {
+                    continue;
+                };
                 let (Some(df), true) = (df, (zf - z).abs() <= tolerance) else { continue };
                 let d = df.distance(desc);
                 if d < best.0 {
@@ -140,5 +137,54 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             n += 1;
         }
         n
+    }
+}
+
+/// Each detected feature's depth (0 without one) and descriptor, computed the first time a
+/// landmark asks for it, stored as arrays (6.2 KB on the stack where a vector of
+/// `Option<(f32, Option<Descriptor>)>` took 12.3 KB).
+struct FeatureCache {
+    depth: [f32; capacity::MAX_FEATURES_PER_FRAME],
+    descriptor: [u64; capacity::MAX_FEATURES_PER_FRAME],
+    /// Computed entries, one bit each.
+    computed: FeatureSet,
+    /// Entries whose descriptor exists, one bit each.
+    described: FeatureSet,
+}
+
+impl FeatureCache {
+    fn new() -> Self {
+        Self {
+            depth: [0.0; capacity::MAX_FEATURES_PER_FRAME],
+            descriptor: [0; capacity::MAX_FEATURES_PER_FRAME],
+            computed: [0; FEATURE_WORDS],
+            described: [0; FEATURE_WORDS],
+        }
+    }
+
+    /// Entry `i`, from `compute` the first time; `None` past the capacity.
+    fn get_or_compute(
+        &mut self,
+        i: usize,
+        compute: impl FnOnce() -> (f32, Option<Descriptor>),
+    ) -> Option<(f32, Option<Descriptor>)> {
+        if i >= capacity::MAX_FEATURES_PER_FRAME {
+            return None;
+        }
+        if !contains(&self.computed, i) {
+            let (z, d) = compute();
+            insert(&mut self.computed, i);
+            if let (Some(d), Some(slot)) = (d, self.descriptor.get_mut(i)) {
+                *slot = d.0;
+                insert(&mut self.described, i);
+            }
+            if let Some(slot) = self.depth.get_mut(i) {
+                *slot = z;
+            }
+        }
+        let z = self.depth.get(i).copied()?;
+        let d =
+            contains(&self.described, i).then(|| self.descriptor.get(i).copied().map(Descriptor));
+        Some((z, d.flatten()))
     }
 }

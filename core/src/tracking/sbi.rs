@@ -80,10 +80,11 @@ impl SmallImage {
             self.block = 0;
             return false;
         }
-        let mut block = [0u16; SMALL_W * SMALL_H];
+        // The block means go straight into `fine` (means of 8-bit values fit a byte) and are
+        // blurred there; the same for the coarse level: no image-sized scratch on the stack.
         let n = (s * s) as u32;
         let used = SMALL_W * s;
-        for (by, out) in block.chunks_exact_mut(SMALL_W).enumerate() {
+        for (by, out) in self.fine.chunks_exact_mut(SMALL_W).enumerate() {
             // Each image row's sums of `s` adjacent pixels, added over the block row's `s` rows
             // (at most 64 x 255: fits u16). Exact integers, so any order gives the same sums.
             let mut sums = [0u16; SMALL_W];
@@ -105,39 +106,52 @@ impl SmallImage {
                 }
             }
             for (b, &sum) in out.iter_mut().zip(&sums) {
-                // Mean of 8-bit values: fits u16.
-                *b = ((u32::from(sum) + n / 2) / n) as u16;
+                // The rounded mean of 8-bit values: at most 255.
+                *b = ((u32::from(sum) + n / 2) / n) as u8;
             }
         }
-        blur_into(&block, SMALL_W, SMALL_H, &mut self.fine);
-        let mut half = [0u16; COARSE_W * COARSE_H];
-        for (k, v) in half.iter_mut().enumerate() {
+        blur_in_place(&mut self.fine, SMALL_W, SMALL_H);
+        for (k, v) in self.coarse.iter_mut().enumerate() {
             let (x, y) = (2 * (k % COARSE_W), 2 * (k / COARSE_W));
             let at = |x: usize, y: usize| {
                 u16::from(self.fine.get(y * SMALL_W + x).copied().unwrap_or(0))
             };
-            *v = (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1) + 2) / 4;
+            // The rounded mean of four bytes: at most 255.
+            *v = ((at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1) + 2) / 4) as u8;
         }
-        blur_into(&half, COARSE_W, COARSE_H, &mut self.coarse);
+        blur_in_place(&mut self.coarse, COARSE_W, COARSE_H);
         self.block = s;
         true
     }
 }
 
-/// 3x3 binomial blur (1 2 1 / 16 per axis) of `src` (`w` x `h`, both at least 2) into `dst`,
-/// edges clamped.
-fn blur_into(src: &[u16], w: usize, h: usize, dst: &mut [u8]) {
+/// 3x3 binomial blur (1 2 1 / 16 per axis) of `img` (`w` x `h`, both at least 2, `w` at most
+/// [`SMALL_W`]) in place, edges clamped: each output row is made from the original rows above,
+/// at and below it, the two already overwritten kept in row buffers.
+fn blur_in_place(img: &mut [u8], w: usize, h: usize) {
+    let mut up = [0u8; SMALL_W];
+    let mut mid = [0u8; SMALL_W];
+    let (Some(up_row), Some(mid_row)) = (up.get_mut(..w), mid.get_mut(..w)) else { return };
+    let Some(first) = img.get(..w) else { return };
+    // Row -1 is row 0, clamped.
+    up_row.copy_from_slice(first);
+    mid_row.copy_from_slice(first);
     for y in 0..h {
-        let rows = [y.saturating_sub(1), y, (y + 1).min(h - 1)];
-        let [Some(up), Some(mid), Some(down)] = rows.map(|r| src.get(r * w..r * w + w)) else {
-            return;
-        };
-        let Some(out) = dst.get_mut(y * w..y * w + w) else { return };
-        // Vertical pass into the row's column sums, then the horizontal pass.
+        let down_start = (y + 1).min(h - 1) * w;
         let mut col = [0u32; SMALL_W];
-        for (((c, &a), &b), &d) in col.iter_mut().zip(up).zip(mid).zip(down) {
-            *c = u32::from(a) + 2 * u32::from(b) + u32::from(d);
+        {
+            let Some(down) = img.get(down_start..down_start + w) else { return };
+            // Vertical pass into the row's column sums, then the horizontal pass.
+            for (((c, &a), &b), &d) in col.iter_mut().zip(&*up_row).zip(&*mid_row).zip(down) {
+                *c = u32::from(a) + 2 * u32::from(b) + u32::from(d);
+            }
         }
+        // The original row y becomes the row above; row y + 1 (not yet overwritten) the middle.
+        up_row.copy_from_slice(mid_row);
+        if let Some(next) = img.get(down_start..down_start + w) {
+            mid_row.copy_from_slice(next);
+        }
+        let Some(out) = img.get_mut(y * w..y * w + w) else { return };
         for (x, o) in out.iter_mut().enumerate() {
             let at = |i: usize| col.get(i).copied().unwrap_or(0);
             let acc = at(x.saturating_sub(1)) + 2 * at(x) + at((x + 1).min(w - 1));
@@ -319,4 +333,34 @@ fn normal_equations(
     }
     let g = Vector5::from(g);
     h.iter().all(|v| v.is_finite()).then_some((h, g, n, sq))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The two-buffer blur `blur_in_place` replaced, as the reference.
+    fn blur_reference(src: &[u8], w: usize, h: usize) -> [u8; SMALL_W * SMALL_H] {
+        let mut dst = [0u8; SMALL_W * SMALL_H];
+        let at = |x: usize, y: usize| u32::from(src[y.min(h - 1) * w + x.min(w - 1)]);
+        for y in 0..h {
+            for x in 0..w {
+                let col = |x: usize| at(x, y.saturating_sub(1)) + 2 * at(x, y) + at(x, y + 1);
+                let acc = col(x.saturating_sub(1)) + 2 * col(x) + col(x + 1);
+                dst[y * w + x] = ((acc + 8) / 16) as u8;
+            }
+        }
+        dst
+    }
+
+    #[test]
+    fn the_in_place_blur_is_the_binomial_blur() {
+        for (w, h) in [(SMALL_W, SMALL_H), (COARSE_W, COARSE_H), (2, 2), (5, 3)] {
+            let mut img: [u8; SMALL_W * SMALL_H] =
+                core::array::from_fn(|k| (k as u32).wrapping_mul(0x9E37_79B9).rotate_left(7) as u8);
+            let want = blur_reference(&img, w, h);
+            blur_in_place(&mut img[..w * h], w, h);
+            assert_eq!(img[..w * h], want[..w * h], "{w} x {h}");
+        }
+    }
 }
