@@ -16,4 +16,6 @@ pub use downsample::{
     downsample_depth_2x, downsample_depth_row_pair, downsample_gray_2x, downsample_gray_row_pair,
 };
 pub use variation::{total_variation, variation, variation_map};
-pub use view::{DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut};
+pub use view::{
+    DepthView, GrayView, GrayViewMut, ImageError, ImageView, ImageViewMut, MAX_DEPTH_LEVEL,
+};

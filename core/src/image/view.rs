@@ -32,6 +32,8 @@ pub enum ImageError {
     },
     /// The depth scale (raw units per metre) is not a finite positive number.
     InvalidDepthScale,
+    /// A depth resolution level above [`MAX_DEPTH_LEVEL`].
+    InvalidDepthLevel(u8),
 }
 
 impl fmt::Display for ImageError {
@@ -48,6 +50,9 @@ impl fmt::Display for ImageError {
                 write!(f, "image is {}x{}, expected {}x{}", got.0, got.1, expected.0, expected.1)
             }
             Self::InvalidDepthScale => write!(f, "depth scale must be finite and positive"),
+            Self::InvalidDepthLevel(level) => {
+                write!(f, "depth level {level} is above the largest, {MAX_DEPTH_LEVEL}")
+            }
         }
     }
 }
@@ -235,28 +240,55 @@ pub type GrayView<'a> = ImageView<'a, u8>;
 /// A writable 8-bit gray image view.
 pub type GrayViewMut<'a> = ImageViewMut<'a, u8>;
 
+/// Largest [`DepthView`] level: one depth pixel per 4 x 4 image pixels.
+pub const MAX_DEPTH_LEVEL: u8 = 2;
+
 /// A 16-bit depth image view with its scale: `raw / depth_scale` is the depth in metres along the
 /// camera's optical (z) axis, and a raw 0 means "no reading".
+///
+/// The depth may be coarser than the gray image it goes with: at level `l` one depth pixel covers
+/// `2^l x 2^l` image pixels (image pixel `(x, y)` lies in depth pixel `(x >> l, y >> l)`), as
+/// [`downsample_depth_2x`](super::downsample_depth_2x) applied `l` times makes it. Every accessor
+/// takes and gives **image** pixels, so the pipeline reads depth the same way at any level; the
+/// reference board keeps its depth at level 1 (a quarter of the memory: see `memory-budget.md`).
 #[derive(Debug, Clone, Copy)]
 pub struct DepthView<'a> {
     raw: ImageView<'a, u16>,
     depth_scale: f32,
+    level: u8,
 }
 
 impl<'a> DepthView<'a> {
     /// A depth view over raw samples with `depth_scale` raw units per metre (1000 for millimetres,
-    /// 5000 for the TUM benchmark).
+    /// 5000 for the TUM benchmark), one depth pixel per image pixel.
     ///
     /// # Errors
     /// [`ImageError::InvalidDepthScale`] when the scale is not finite and positive.
     pub fn new(raw: ImageView<'a, u16>, depth_scale: f32) -> Result<Self, ImageError> {
+        Self::with_level(raw, depth_scale, 0)
+    }
+
+    /// A depth view whose pixels each cover `2^level x 2^level` image pixels (see the type's
+    /// documentation).
+    ///
+    /// # Errors
+    /// [`ImageError::InvalidDepthScale`] when the scale is not finite and positive;
+    /// [`ImageError::InvalidDepthLevel`] when `level` is above [`MAX_DEPTH_LEVEL`].
+    pub fn with_level(
+        raw: ImageView<'a, u16>,
+        depth_scale: f32,
+        level: u8,
+    ) -> Result<Self, ImageError> {
         if !(depth_scale.is_finite() && depth_scale > 0.0) {
             return Err(ImageError::InvalidDepthScale);
         }
-        Ok(Self { raw, depth_scale })
+        if level > MAX_DEPTH_LEVEL {
+            return Err(ImageError::InvalidDepthLevel(level));
+        }
+        Ok(Self { raw, depth_scale, level })
     }
 
-    /// The raw samples.
+    /// The raw samples, in depth pixels.
     pub fn raw(&self) -> ImageView<'a, u16> {
         self.raw
     }
@@ -266,23 +298,34 @@ impl<'a> DepthView<'a> {
         self.depth_scale
     }
 
-    /// Width in pixels.
+    /// The level: one depth pixel per `2^level x 2^level` image pixels.
+    pub fn level(&self) -> u8 {
+        self.level
+    }
+
+    /// Width of the image it covers, image pixels (`2^level` times the raw width).
     pub fn width(&self) -> usize {
-        self.raw.width()
+        self.raw.width() << self.level
     }
 
-    /// Height in pixels.
+    /// Height of the image it covers, image pixels.
     pub fn height(&self) -> usize {
-        self.raw.height()
+        self.raw.height() << self.level
     }
 
-    /// `(width, height)` in pixels.
+    /// `(width, height)` of the image it covers, image pixels.
     pub fn size(&self) -> (usize, usize) {
-        self.raw.size()
+        (self.width(), self.height())
     }
 
-    /// Depth at `(x, y)` in metres, or `None` outside the image or where the sensor gave no reading.
+    /// Depth at image pixel `(x, y)` in metres (the reading of the depth pixel holding it), or
+    /// `None` outside the image or where the sensor gave no reading.
     pub fn depth_m(&self, x: usize, y: usize) -> Option<f32> {
+        self.raw_m(x >> self.level, y >> self.level)
+    }
+
+    /// Depth at depth pixel `(x, y)`, metres.
+    fn raw_m(&self, x: usize, y: usize) -> Option<f32> {
         match self.raw.get(x, y) {
             Some(0) | None => None,
             Some(d) => Some(f32::from(d) / self.depth_scale),
@@ -304,15 +347,22 @@ impl<'a> DepthView<'a> {
         if !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f32 && v <= (h - 1) as f32) {
             return None;
         }
+        // Image pixel centre `u` is depth coordinate `(u + 0.5) / 2^l - 0.5`; the half depth
+        // pixel at each border has no neighbour beyond it and takes the border's reading.
+        let (u, v) = if self.level == 0 {
+            (u, v)
+        } else {
+            let s = 1.0 / f32::from(1u8 << self.level);
+            let (wd, hd) = self.raw.size();
+            let at = |p: f32, n: usize| ((p + 0.5) * s - 0.5).clamp(0.0, (n - 1) as f32);
+            (at(u, wd), at(v, hd))
+        };
+        let (w, h) = self.raw.size();
         let (x0, y0) = (u as usize, v as usize);
         let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
         let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-        let d = [
-            self.depth_m(x0, y0)?,
-            self.depth_m(x1, y0)?,
-            self.depth_m(x0, y1)?,
-            self.depth_m(x1, y1)?,
-        ];
+        let d =
+            [self.raw_m(x0, y0)?, self.raw_m(x1, y0)?, self.raw_m(x0, y1)?, self.raw_m(x1, y1)?];
         let (lo, hi) =
             d.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), &z| (lo.min(z), hi.max(z)));
         if hi - lo > max_relative_step * lo {
@@ -355,6 +405,51 @@ mod tests {
         assert_eq!(v.get(1, 1), Some(4));
         assert_eq!(v.get(2, 0), None);
         assert_eq!(v.get(0, 2), None);
+    }
+
+    #[test]
+    fn a_coarser_depth_reads_in_image_pixels() {
+        // A slanted plane, z = 1 + 0.01 x + 0.02 y metres at image pixel (x, y), sampled at the
+        // centres of 2 x 2 blocks (what halving a plane gives) into an 8 x 6 depth image for a
+        // 16 x 12 image.
+        let plane = |x: f32, y: f32| 1.0 + 0.01 * x + 0.02 * y;
+        let mut raw = [0u16; 8 * 6];
+        for (k, r) in raw.iter_mut().enumerate() {
+            let (x, y) = ((k % 8) as f32 * 2.0 + 0.5, (k / 8) as f32 * 2.0 + 0.5);
+            *r = libm::roundf(plane(x, y) * 10_000.0) as u16;
+        }
+        let view = ImageView::packed(&raw, 8, 6).unwrap();
+        let d = DepthView::with_level(view, 10_000.0, 1).unwrap();
+        assert_eq!((d.size(), d.level()), ((16, 12), 1));
+        // Whole pixels read the depth pixel holding them.
+        assert_eq!(d.depth_m(5, 3), Some(f32::from(raw[8 + 2]) / 10_000.0));
+        assert_eq!(d.depth_m(16, 0), None);
+        // Sub-pixel reads interpolate the plane in image pixels, up to the samples' rounding.
+        for (u, v) in [(1.0, 1.0), (4.25, 7.5), (10.0, 2.75), (13.5, 9.0)] {
+            let z = d.depth_at(u, v, 0.1).unwrap();
+            assert!((z - plane(u, v)).abs() < 2e-4, "({u}, {v}): {z} vs {}", plane(u, v));
+        }
+        // The whole image is covered: its last pixel and the half depth pixel at each border.
+        assert!(d.depth_at(15.0, 11.0, 0.1).is_some());
+        assert!(d.depth_at(0.0, 0.0, 0.1).is_some());
+        assert_eq!(d.depth_at(15.5, 0.0, 0.1), None);
+        assert_eq!(
+            DepthView::with_level(view, 1.0, MAX_DEPTH_LEVEL + 1).unwrap_err(),
+            ImageError::InvalidDepthLevel(MAX_DEPTH_LEVEL + 1)
+        );
+    }
+
+    #[test]
+    fn level_zero_is_the_plain_view() {
+        let raw = [1000u16, 2000, 3000, 4000];
+        let view = ImageView::packed(&raw, 2, 2).unwrap();
+        let (a, b) = (
+            DepthView::new(view, 1000.0).unwrap(),
+            DepthView::with_level(view, 1000.0, 0).unwrap(),
+        );
+        assert_eq!(a.size(), b.size());
+        assert_eq!(a.depth_at(0.3, 0.6, 10.0), b.depth_at(0.3, 0.6, 10.0));
+        assert_eq!(a.depth_at(0.3, 0.6, 10.0), Some(1.0 + 0.3 + 2.0 * 0.6));
     }
 
     #[test]

@@ -29,13 +29,15 @@ use crate::trajectory::{StampedPose, Trajectory};
 pub struct ProfileSource<S> {
     inner: S,
     levels: u8,
+    depth_level: u8,
     current: Option<OwnedFrame>,
 }
 
 impl<S> ProfileSource<S> {
-    /// Wraps `inner`, halving its frames `levels` times (0 = pass frames through unchanged).
-    pub fn new(inner: S, levels: u8) -> Self {
-        Self { inner, levels, current: None }
+    /// Wraps `inner`, halving its frames `levels` times and their depth `depth_level` more
+    /// times (see [`OwnedFrame::coarsen_depth`]; both 0 = pass frames through unchanged).
+    pub fn new(inner: S, levels: u8, depth_level: u8) -> Self {
+        Self { inner, levels, depth_level, current: None }
     }
 
     /// The wrapped source.
@@ -65,10 +67,11 @@ where
     fn next_frame(&mut self) -> Result<Option<RgbdFrame<'_>>, Self::Error> {
         let frame = self.inner.next_frame().map_err(ProfileSourceError::Source)?;
         let Some(frame) = frame else { return Ok(None) };
-        if self.levels == 0 {
+        if self.levels == 0 && self.depth_level == 0 {
             return Ok(Some(frame));
         }
         let halved = self.current.insert(halve_frame(&frame, self.levels)?);
+        halved.coarsen_depth(self.depth_level)?;
         Ok(Some(halved.view()?))
     }
 }

@@ -60,6 +60,11 @@ pub struct DemoArgs {
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
     pub schedule: datapath::Schedule,
+    /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
+    /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
+    /// is what the firmware does.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL)))]
+    pub depth_level: u8,
 }
 
 /// Runs `demo`.
@@ -103,7 +108,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         for _ in 0..profile.downsample_levels {
             cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
         }
-        let mut source = ProfileSource::new(sequence.into_source(), profile.downsample_levels);
+        let mut source =
+            ProfileSource::new(sequence.into_source(), profile.downsample_levels, args.depth_level);
         let tunables = Tunables {
             depth_noise_coeff_per_m: sensor_depth_noise(args.depth_noise),
             ..Tunables::default()
@@ -123,7 +129,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         println!("  wrote {}", out.display());
         return Ok(());
     }
-    let mut source = ProfileSource::new(sequence.into_source(), profile.downsample_levels);
+    let mut source =
+        ProfileSource::new(sequence.into_source(), profile.downsample_levels, args.depth_level);
     let run = datapath::run(&mut source, frames)?;
     let elapsed = started.elapsed().as_secs_f64();
 

@@ -109,6 +109,11 @@ pub struct ReplayArgs {
     /// much of an accuracy figure is chance (`cargo xtask spread`).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
+    /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
+    /// is what the firmware does.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL)))]
+    pub depth_level: u8,
 }
 
 /// Runs `replay`.
@@ -126,6 +131,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         profile,
         skip_frames: args.skip_frames,
         max_frames: args.max_frames,
+        depth_level: args.depth_level,
         ..DatasetOptions::default()
     };
     let dataset = Dataset::open(&args.dataset, &opts)?;

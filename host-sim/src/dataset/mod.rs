@@ -74,6 +74,9 @@ pub struct DatasetOptions {
     pub skip_frames: usize,
     /// Keep at most this many associated frames, the earliest (default: all).
     pub max_frames: Option<usize>,
+    /// Halve the depth this many more times than the gray image (default: 0; see
+    /// [`OwnedFrame::coarsen_depth`]).
+    pub depth_level: u8,
     /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
     /// core's `Tunables::association_max_dt_s`, 0.02 s).
     pub max_dt_s: f64,
@@ -86,6 +89,7 @@ impl Default for DatasetOptions {
             profile: Config::default().profile,
             skip_frames: 0,
             max_frames: None,
+            depth_level: 0,
             max_dt_s: Tunables::default().association_max_dt_s,
         }
     }
@@ -156,6 +160,7 @@ pub struct Dataset {
     sensor: Calibration,
     calibration: Calibration,
     profile: Profile,
+    depth_level: u8,
 }
 
 impl Dataset {
@@ -221,7 +226,17 @@ impl Dataset {
         // The frames `load_frame` gives are registered, so their calibration has no depth camera.
         let calibration = Calibration { depth: None, ..sensor.downsampled(levels) };
         let profile = opts.profile;
-        Ok(Self { dir: dir.to_owned(), frames, skipped, groundtruth, sensor, calibration, profile })
+        let depth_level = opts.depth_level;
+        Ok(Self {
+            dir: dir.to_owned(),
+            frames,
+            skipped,
+            groundtruth,
+            sensor,
+            calibration,
+            profile,
+            depth_level,
+        })
     }
 
     /// The dataset folder.
@@ -281,7 +296,8 @@ impl Dataset {
     /// Decodes frame `index`: colour to 8-bit gray, depth as raw 16-bit, both checked against the
     /// calibrated size; registers the depth to the colour camera when the calibration has a
     /// depth camera ([`registration::register_depth`]); then halves both
-    /// `profile.downsample_levels` times by the core's 2x2 downsamplers.
+    /// `profile.downsample_levels` times by the core's 2x2 downsamplers, and the depth
+    /// `depth_level` more times ([`OwnedFrame::coarsen_depth`]).
     ///
     /// # Errors
     /// [`DatasetError::FrameIndex`] past the end; [`DatasetError::Io`], [`DatasetError::Decode`],
@@ -304,14 +320,18 @@ impl Dataset {
             height: size.1 as usize,
             gray,
             depth,
+            depth_level: 0,
             depth_scale: self.sensor.depth_scale,
         };
         let levels = self.profile.downsample_levels;
-        if levels == 0 {
-            return Ok(full);
-        }
         let err = |source| DatasetError::Image { path: frame.rgb_path.clone(), source };
-        halve_frame(&full.view().map_err(err)?, levels).map_err(err)
+        let mut out = if levels == 0 {
+            full
+        } else {
+            halve_frame(&full.view().map_err(err)?, levels).map_err(err)?
+        };
+        out.coarsen_depth(self.depth_level).map_err(err)?;
+        Ok(out)
     }
 
     /// Moves the dataset into a reader that decodes up to `read_ahead` frames ahead of the caller
