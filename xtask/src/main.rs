@@ -17,7 +17,8 @@
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
-//! - `spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]`:
+//! - `spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]
+//!   [-- REPLAY ARGS]`:
 //!   the ATE of the odometry and SLAM replays over several RANSAC seeds and start frames (mean,
 //!   median, range), to tell a real accuracy change from a lucky run; see `spread.rs`.
 //! - `calibrate-depth [--dataset DIR] [--start N] [--step N] [--check FILE]`: estimates the
@@ -60,7 +61,7 @@ fn main() -> ExitCode {
                  [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE] | calibrate-depth [--dataset DIR] [--start N] [--step N] \
+                 [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] [--step N] \
                  [--check FILE]>"
             );
             return ExitCode::from(2);

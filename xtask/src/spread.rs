@@ -7,7 +7,7 @@
 //! in the odometry and SLAM modes and reports the spread, so a change is judged on the mean.
 //!
 //! ```text
-//! cargo xtask spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]
+//! cargo xtask spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE] [-- REPLAY ARGS]
 //! ```
 //!
 //! - `--dataset`: a TUM-layout folder (default: 7-Scenes, `../shared/datasets/...`).
@@ -17,6 +17,8 @@
 //! - `--seeds N`: the core's default RANSAC seed and the seeds `1..N` (default 3, so 4 seeds).
 //! - `--skips`: start frames, each a run that skips that many frames (default `0,300,600`).
 //! - `--json FILE`: every run's ATE and the summaries, as JSON.
+//! - `-- REPLAY ARGS`: given to every replay, to measure an option's effect (for example
+//!   `-- --depth-level 1` or `-- --backend-quota 2500`).
 //!
 //! Each run is `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
 //! --skip-frames K` (QVGA, the
@@ -43,6 +45,8 @@ struct Options {
     seeds: u64,
     skips: Vec<usize>,
     json: Option<PathBuf>,
+    /// Arguments after `--`, given to every replay.
+    replay_args: Vec<String>,
 }
 
 /// One replay of the grid.
@@ -127,6 +131,7 @@ fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<f64> 
     if let Some(seed) = run.seed {
         cmd.args(["--seed", &seed.to_string()]);
     }
+    cmd.args(&opts.replay_args);
     let output = cmd.output().with_context(|| format!("could not start {}", sim.display()))?;
     if !output.status.success() {
         bail!(
@@ -192,6 +197,7 @@ fn parse_args(args: &[String]) -> Result<Options> {
         seeds: 3,
         skips: vec![0, 300, 600],
         json: None,
+        replay_args: Vec::new(),
     };
     let mut calibration = None;
     let mut it = args.iter();
@@ -209,9 +215,14 @@ fn parse_args(args: &[String]) -> Result<Options> {
                     .context("--skips: frame counts separated by commas")?;
             }
             "--json" => opts.json = Some(PathBuf::from(value()?)),
+            "--" => {
+                opts.replay_args = it.by_ref().cloned().collect();
+                break;
+            }
             other => bail!(
                 "unknown argument {other}; usage: cargo xtask spread [--dataset DIR] \
-                 [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE]"
+                 [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE] \
+                 [-- REPLAY ARGS]"
             ),
         }
     }
@@ -233,6 +244,8 @@ mod tests {
         assert_eq!((o.seeds, o.skips), (1, vec![0, 100]));
         assert!(a(&["--skips", "x"]).unwrap_err().to_string().contains("--skips"));
         assert!(a(&["--seeds"]).unwrap_err().to_string().contains("needs a value"));
+        let o = a(&["--seeds", "0", "--", "--depth-level", "1"]).unwrap();
+        assert_eq!((o.seeds, o.replay_args), (0, vec!["--depth-level".to_owned(), "1".to_owned()]));
         assert!(a(&["--frobnicate"]).unwrap_err().to_string().contains("unknown argument"));
     }
 }
