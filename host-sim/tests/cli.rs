@@ -43,6 +43,24 @@ fn replay_of_real_frames_writes_a_report() {
 }
 
 #[test]
+fn a_coarser_depth_is_an_option_within_the_core_levels() {
+    let out = tempfile::tempdir().unwrap();
+    let dataset = seven_scenes();
+    let (data, dir) = (dataset.to_str().unwrap(), out.path().to_str().unwrap());
+    let frames = ["--max-frames", "3", "--mode", "odometry"];
+    let run = sim(&[&["replay", data, "--out", dir, "--depth-level", "1"][..], &frames].concat());
+    assert!(run.status.success(), "replay failed: {}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
+    assert_eq!((report["frames"].as_u64(), report["width"].as_u64()), (Some(3), Some(320)));
+    let note = report["note"].as_str().unwrap_or_default();
+    assert!(note.contains("1 halving(s) coarser"), "the report says so: {note}");
+    let run = sim(&[&["replay", data, "--out", dir, "--depth-level", "3"][..], &frames].concat());
+    assert_eq!(run.status.code(), Some(2));
+    assert!(stderr(&run).contains("--depth-level"), "{}", stderr(&run));
+}
+
+#[test]
 fn bad_dataset_exits_non_zero_naming_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(

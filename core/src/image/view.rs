@@ -249,8 +249,9 @@ pub const MAX_DEPTH_LEVEL: u8 = 2;
 /// The depth may be coarser than the gray image it goes with: at level `l` one depth pixel covers
 /// `2^l x 2^l` image pixels (image pixel `(x, y)` lies in depth pixel `(x >> l, y >> l)`), as
 /// [`downsample_depth_2x`](super::downsample_depth_2x) applied `l` times makes it. Every accessor
-/// takes and gives **image** pixels, so the pipeline reads depth the same way at any level; the
-/// reference board keeps its depth at level 1 (a quarter of the memory: see `memory-budget.md`).
+/// takes and gives **image** pixels, so the pipeline reads depth the same way at any level. Level 1
+/// holds the depth in a quarter of the memory; the firmware keeps level 0, as level 1 costs the
+/// synthetic demo's SLAM accuracy (`memory-budget.md` gives the trade-off).
 #[derive(Debug, Clone, Copy)]
 pub struct DepthView<'a> {
     raw: ImageView<'a, u16>,

@@ -46,6 +46,12 @@ impl<S> ProfileSource<S> {
     }
 }
 
+/// The command-line parser of a `--depth-level`: 0 to the core's
+/// [`MAX_DEPTH_LEVEL`](ferroslam_core::image::MAX_DEPTH_LEVEL).
+pub fn depth_level_parser() -> clap::builder::RangedI64ValueParser<u8> {
+    clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL))
+}
+
 /// Why a [`ProfileSource`] could not give a frame.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileSourceError<E: std::error::Error + 'static> {

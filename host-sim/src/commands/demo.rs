@@ -9,7 +9,7 @@ use ferroslam_core::config::Tunables;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
-use super::datapath::{self, ProfileSource};
+use super::datapath::{self, ProfileSource, depth_level_parser};
 use super::replay::{ModeArg, ProfileArg, summary};
 use super::report::{Report, write_odometry};
 use crate::eval;
@@ -63,7 +63,7 @@ pub struct DemoArgs {
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
     /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
     /// is what the firmware does.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL)))]
+    #[arg(long, default_value_t = 0, value_parser = depth_level_parser())]
     pub depth_level: u8,
 }
 
@@ -121,7 +121,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             "{} synthetic frames rendered at 640x480; {}; depth noise given to the core {:.1e} \
              1/m in inverse depth",
             run.data.frames,
-            super::replay::run_note(args.mode, profile.name, (run.data.width, run.data.height)),
+            super::replay::with_depth_level(
+                super::replay::run_note(args.mode, profile.name, (run.data.width, run.data.height)),
+                args.depth_level
+            ),
             tunables.depth_noise_coeff_per_m
         );
         let out_files = write_odometry(out, &run, Some(&gt), profile.name, 0, note)?;

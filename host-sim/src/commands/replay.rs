@@ -10,7 +10,7 @@ use ferroslam_core::config::{Profile, QVGA, Tunables, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
-use super::datapath;
+use super::datapath::{self, depth_level_parser};
 use super::report::{Report, write_odometry};
 use crate::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use crate::plot;
@@ -112,7 +112,7 @@ pub struct ReplayArgs {
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
     /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
     /// is what the firmware does.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL)))]
+    #[arg(long, default_value_t = 0, value_parser = depth_level_parser())]
     pub depth_level: u8,
 }
 
@@ -155,7 +155,10 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             &Tunables::default(),
         )?;
         let wall_s = started.elapsed().as_secs_f64();
-        let note = run_note(args.mode, profile.name, (run.data.width, run.data.height));
+        let note = with_depth_level(
+            run_note(args.mode, profile.name, (run.data.width, run.data.height)),
+            args.depth_level,
+        );
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
         println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
         return Ok(());
@@ -200,6 +203,15 @@ pub fn run_note(mode: ModeArg, profile: &str, (width, height): (usize, usize)) -
              the landmarks; no bundle adjustment, no loop closure"
         ),
     }
+}
+
+/// `note`, plus what `--depth-level` changed when it is not 0.
+pub fn with_depth_level(note: String, depth_level: u8) -> String {
+    if depth_level == 0 {
+        return note;
+    }
+    let s = 1u32 << depth_level;
+    format!("{note}; depth kept {depth_level} halving(s) coarser than the gray image ({s}x{s} px)")
 }
 
 /// The one-line summary of an odometry run.
