@@ -61,8 +61,8 @@ fn main() -> ExitCode {
                  [--write] [--strict] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] [--step N] \
-                 [--check FILE]>"
+                 [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] \
+                 [--step N] [--check FILE]>"
             );
             return ExitCode::from(2);
         }

@@ -21,8 +21,8 @@
 //!   `-- --depth-level 1` or `-- --backend-quota 2500`).
 //!
 //! Each run is `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
-//! --skip-frames K` (QVGA, the
-//! default back-end quota and schedule), two at a time; the ATE is read from its `report.json`.
+//! --skip-frames K [REPLAY ARGS]` (QVGA, the default back-end quota and schedule unless the
+//! replay arguments say otherwise), two at a time; the ATE is read from its `report.json`.
 //! Not part of `cargo xtask ci` (it takes a few minutes and asserts nothing): a tool for the
 //! engineer deciding whether a change helps.
 

@@ -127,30 +127,30 @@ impl SmallImage {
 
 /// 3x3 binomial blur (1 2 1 / 16 per axis) of `img` (`w` x `h`, both at least 2, `w` at most
 /// [`SMALL_W`]) in place, edges clamped: each output row is made from the original rows above,
-/// at and below it, the two already overwritten kept in row buffers.
+/// at and below it; the original rows above and at it, already overwritten or about to be, are
+/// kept in two row buffers that swap roles as the rows go down.
 fn blur_in_place(img: &mut [u8], w: usize, h: usize) {
-    let mut up = [0u8; SMALL_W];
-    let mut mid = [0u8; SMALL_W];
-    let (Some(up_row), Some(mid_row)) = (up.get_mut(..w), mid.get_mut(..w)) else { return };
+    let (mut first_buffer, mut second_buffer) = ([0u8; SMALL_W], [0u8; SMALL_W]);
+    let (Some(mut up), Some(mut mid)) = (first_buffer.get_mut(..w), second_buffer.get_mut(..w))
+    else {
+        return;
+    };
     let Some(first) = img.get(..w) else { return };
     // Row -1 is row 0, clamped.
-    up_row.copy_from_slice(first);
-    mid_row.copy_from_slice(first);
+    up.copy_from_slice(first);
+    mid.copy_from_slice(first);
     for y in 0..h {
+        // The original row y + 1 (the last row clamped): rows below y are not yet overwritten.
         let down_start = (y + 1).min(h - 1) * w;
+        let Some(down) = img.get(down_start..down_start + w) else { return };
+        // Vertical pass into the row's column sums, then the horizontal pass.
         let mut col = [0u32; SMALL_W];
-        {
-            let Some(down) = img.get(down_start..down_start + w) else { return };
-            // Vertical pass into the row's column sums, then the horizontal pass.
-            for (((c, &a), &b), &d) in col.iter_mut().zip(&*up_row).zip(&*mid_row).zip(down) {
-                *c = u32::from(a) + 2 * u32::from(b) + u32::from(d);
-            }
+        for (((c, &a), &b), &d) in col.iter_mut().zip(&*up).zip(&*mid).zip(down) {
+            *c = u32::from(a) + 2 * u32::from(b) + u32::from(d);
         }
-        // The original row y becomes the row above; row y + 1 (not yet overwritten) the middle.
-        up_row.copy_from_slice(mid_row);
-        if let Some(next) = img.get(down_start..down_start + w) {
-            mid_row.copy_from_slice(next);
-        }
+        // The original row y becomes the row above, row y + 1 the row at the next output row.
+        core::mem::swap(&mut up, &mut mid);
+        mid.copy_from_slice(down);
         let Some(out) = img.get_mut(y * w..y * w + w) else { return };
         for (x, o) in out.iter_mut().enumerate() {
             let at = |i: usize| col.get(i).copied().unwrap_or(0);
