@@ -215,6 +215,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
                 calibration: crate::ci::calibration_for(&opts.dataset),
                 max_frames: opts.frames,
                 out: opts.out.clone(),
+                qemu_args: Vec::new(),
             };
             replay::run(root, &replay)?;
             opts.out.clone()

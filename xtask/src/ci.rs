@@ -167,6 +167,7 @@ fn firmware_replay() -> Result<()> {
         calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
         max_frames: FIRMWARE_REPLAY_FRAMES,
         out: firmware_replay_dir(),
+        qemu_args: Vec::new(),
     };
     crate::replay::run(&root(), &opts)
 }

@@ -55,12 +55,14 @@ pub struct QemuRun {
 
 /// Boots `elf` in QEMU with `dir` as its working directory, `append` as its semihosting command
 /// line and UART0 captured to `dir/uart_file`; stdout (the defmt stream) goes to `dir/defmt.bin`,
-/// stderr to `dir/qemu-stderr.txt`. QEMU is killed after `timeout`.
+/// stderr to `dir/qemu-stderr.txt`; `extra` is appended to QEMU's arguments (a `-plugin`, say).
+/// QEMU is killed after `timeout`.
 pub fn run_qemu(
     elf: &Path,
     dir: &Path,
     append: &str,
     uart_file: &str,
+    extra: &[String],
     timeout: Duration,
 ) -> Result<QemuRun> {
     let stdout = fs::File::create(dir.join("defmt.bin")).context("creating defmt.bin")?;
@@ -72,6 +74,7 @@ pub fn run_qemu(
         .args(["-icount", "shift=0,align=off,sleep=off", "-kernel"])
         .arg(elf)
         .args(["-append", append])
+        .args(extra)
         .current_dir(dir)
         .stdin(Stdio::null())
         .stdout(stdout)

@@ -14,6 +14,9 @@
 //!   Cortex-M4F) against the budgets of `memory-budget.md`: prints budget vs measured, fails on
 //!   a figure over its ceiling (over its bar when it has no ceiling; over any bar with
 //!   `--strict`); `--write` regenerates the file's figures; see `budgets.rs`.
+//! - `profile-firmware [--dataset DIR] [--frames N] [--top K] [--out DIR]`: the firmware's
+//!   Cortex-M4 instructions by function, counted by a QEMU plugin on a firmware replay (default
+//!   200 frames of 7-Scenes); see `profile.rs`.
 //! - `bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN]`: the front
 //!   end's instructions per frame, in total and per stage, counted by callgrind on a replay
 //!   (default: the first 200 frames of 7-Scenes); see `bench.rs`.
@@ -34,6 +37,7 @@ mod budgets;
 mod ci;
 mod cost;
 mod firmware;
+mod profile;
 mod registration;
 mod replay;
 mod spread;
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         }
         Some("bench-frontend") => bench::run(&args[1..]),
         Some("budgets") => budgets::run(&args[1..]),
+        Some("profile-firmware") => profile::run(&args[1..]),
         Some("spread") => spread::run(&args[1..]),
         Some("calibrate-depth") => registration::run(&args[1..]),
         _ => {
@@ -59,6 +64,7 @@ fn main() -> ExitCode {
                  [--out DIR] | \
                  budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] \
                  [--write] [--strict] | \
+                 profile-firmware [--dataset DIR] [--frames N] [--top K] [--out DIR] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
                  [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] \

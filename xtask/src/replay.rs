@@ -62,6 +62,8 @@ pub struct ReplayOptions {
     pub max_frames: usize,
     /// Output folder.
     pub out: PathBuf,
+    /// More QEMU arguments (`profile-firmware`'s `-plugin`); none from the command line.
+    pub qemu_args: Vec<String>,
 }
 
 impl ReplayOptions {
@@ -96,7 +98,7 @@ impl ReplayOptions {
         if max_frames == 0 {
             bail!("--max-frames must be at least 1");
         }
-        Ok(Self { dataset, calibration, max_frames, out })
+        Ok(Self { dataset, calibration, max_frames, out, qemu_args: Vec::new() })
     }
 }
 
@@ -130,7 +132,8 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     let _ = fs::remove_file(out.join("uart.bin"));
     let append =
         format!("frames.fsrs {} {} {} {} {} {}", c.fx, c.fy, c.cx, c.cy, c.width, c.height);
-    let run = firmware::run_qemu(&elf, &out, &append, "uart.bin", qemu_timeout(frames))?;
+    let run =
+        firmware::run_qemu(&elf, &out, &append, "uart.bin", &opts.qemu_args, qemu_timeout(frames))?;
     let elf_bytes = fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
     let (log, log_error) = decode_defmt(&elf_bytes, &run.defmt);
     fs::write(out.join("firmware.log"), log.join("\n") + "\n")?;
