@@ -16,9 +16,9 @@ pub mod capacity {
     pub const MAX_FEATURES_PER_FRAME: usize = 512;
     /// Keyframes held in the map arena at once, with their observations (the policy when it is
     /// full is in [`crate::map`]).
-    pub const MAX_KEYFRAMES: usize = 64;
+    pub const MAX_KEYFRAMES: usize = 32;
     /// Landmarks held in the map arena at once.
-    pub const MAX_LANDMARKS: usize = 2048;
+    pub const MAX_LANDMARKS: usize = 1024;
     /// Observations one keyframe records at most (landmarks tracked into it plus new ones).
     pub const MAX_OBSERVATIONS_PER_KEYFRAME: usize = 128;
     /// Landmarks the tracker keeps a template for and tracks each frame (its local map).
@@ -39,6 +39,10 @@ pub struct Profile {
     pub name: &'static str,
     /// How many times the sensor frame is halved before processing (0 = full resolution).
     pub downsample_levels: u8,
+    /// How many times more the depth is halved than the gray image, as the frame store keeps it
+    /// (the [`DepthView`](crate::image::DepthView) level: one depth reading per `2^l` x `2^l`
+    /// processing pixels, read in processing pixels).
+    pub depth_level: u8,
 }
 
 impl Profile {
@@ -53,16 +57,24 @@ impl Profile {
     }
 }
 
-/// The reference board's profile: 640x480 sensor frames halved once to 320x240.
-pub const QVGA: Profile = Profile { name: "qvga", downsample_levels: 1 };
+/// The reference board's profile: 640x480 sensor frames halved once to 320x240, the depth
+/// halved once more, to 160x120 (level 1).
+///
+/// The coarser depth is what lets the board's RAM budget hold a map: it keeps 38,400 bytes of
+/// depth instead of 153,600. Measured against level 0 (memory-budget.md has the figures): on
+/// 7-Scenes it costs no accuracy, as the sensor's own depth is not sharper than that; on the
+/// demo's exact synthetic depth, odometry is unchanged and SLAM loses a little.
+pub const QVGA: Profile = Profile { name: "qvga", downsample_levels: 1, depth_level: 1 };
 
-/// The full-resolution profile for hosts with memory to spare.
-pub const VGA: Profile = Profile { name: "vga", downsample_levels: 0 };
+/// The full-resolution profile for hosts with memory to spare (depth at full resolution too).
+pub const VGA: Profile = Profile { name: "vga", downsample_levels: 0, depth_level: 0 };
 
 /// A gray frame buffer at the QVGA profile (320x240), owned by whoever holds the frame.
 pub type QvgaGrayBuffer = [u8; (capacity::MAX_WIDTH / 2) * (capacity::MAX_HEIGHT / 2)];
-/// A raw depth frame buffer at the QVGA profile (320x240).
-pub type QvgaDepthBuffer = [u16; (capacity::MAX_WIDTH / 2) * (capacity::MAX_HEIGHT / 2)];
+/// A raw depth frame buffer at the QVGA profile: 160x120, one reading per 2x2 block of the
+/// 320x240 gray image ([`QVGA`]`.depth_level` = 1).
+pub type QvgaDepthBuffer = [u16; (capacity::MAX_WIDTH >> (1 + QVGA.depth_level))
+    * (capacity::MAX_HEIGHT >> (1 + QVGA.depth_level))];
 /// A gray frame buffer at the VGA profile (640x480).
 pub type VgaGrayBuffer = [u8; capacity::MAX_WIDTH * capacity::MAX_HEIGHT];
 /// A raw depth frame buffer at the VGA profile (640x480).
@@ -89,6 +101,12 @@ pub struct Tunables {
     ///
     /// [`PoseParams::depth_noise_coeff_per_m`]: crate::tracking::PoseParams::depth_noise_coeff_per_m
     pub depth_noise_coeff_per_m: f32,
+    /// The same coefficient as bundle adjustment weighs a keyframe's depth observation, in 1/m.
+    /// Default 6e-4 whatever the sensor, measured (see [`BackendParams::DEFAULT`], which says
+    /// why it differs from the tracker's).
+    ///
+    /// [`BackendParams::DEFAULT`]: crate::backend::BackendParams::DEFAULT
+    pub ba_depth_noise_coeff_per_m: f32,
 }
 
 impl Default for Tunables {
@@ -98,6 +116,9 @@ impl Default for Tunables {
             depth_max_m: 4.0,
             association_max_dt_s: 0.02,
             depth_noise_coeff_per_m: crate::tracking::PoseParams::DEFAULT.depth_noise_coeff_per_m,
+            ba_depth_noise_coeff_per_m: crate::backend::BackendParams::DEFAULT
+                .local
+                .depth_noise_coeff_per_m,
         }
     }
 }

@@ -7,7 +7,7 @@
 //!
 //! ```
 //! use ferroslam_core::system::QvgaSlam;
-//! // About 0.9 MB: give it a `static` on a board, a box on a host.
+//! // About 350 KB: give it a `static` on a board, a box on a host.
 //! let slam: Box<QvgaSlam> = Box::default();
 //! assert_eq!(slam.map().num_keyframes(), 0);
 //! ```

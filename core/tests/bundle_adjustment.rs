@@ -421,5 +421,5 @@ fn sizes_are_as_documented() {
         size_of::<SegmentedBundleAdjuster>()
     );
     assert_eq!(size_of::<LocalBundleAdjuster>(), 124_320);
-    assert_eq!(size_of::<SegmentedBundleAdjuster>(), 110_040);
+    assert_eq!(size_of::<SegmentedBundleAdjuster>(), 99_496);
 }

@@ -49,7 +49,10 @@ fn row<T>(name: &'static str, capacity: impl Into<String>) -> Structure {
 pub fn core_structures() -> Vec<Structure> {
     vec![
         row::<QvgaGrayBuffer>("config::QvgaGrayBuffer", "320 x 240 gray, u8"),
-        row::<QvgaDepthBuffer>("config::QvgaDepthBuffer", "320 x 240 depth, u16"),
+        row::<QvgaDepthBuffer>(
+            "config::QvgaDepthBuffer",
+            "160 x 120 depth, u16 (one reading per 2 x 2 gray pixels: level 1)",
+        ),
         row::<VgaGrayBuffer>("config::VgaGrayBuffer", "640 x 480 gray, u8"),
         row::<VgaDepthBuffer>("config::VgaDepthBuffer", "640 x 480 depth, u16"),
         row::<Config>("config::Config", "profile + tunables"),

@@ -76,7 +76,17 @@ fn frame_0_at_vga_is_plausible() {
 #[test]
 fn frame_0_at_qvga_is_the_halved_vga_frame() {
     let full = open(VGA, Some(1)).load_frame(0).unwrap();
-    let ds = open(QVGA, Some(1));
+    // The board keeps the depth one level coarser than the gray image; the halving rule is
+    // checked on the depth at the gray image's resolution (level 0).
+    let board = open(QVGA, Some(1)).load_frame(0).unwrap();
+    assert_eq!((board.depth_level, board.depth_size()), (1, (160, 120)));
+    let opts = DatasetOptions {
+        profile: QVGA,
+        max_frames: Some(1),
+        depth_level: Some(0),
+        ..DatasetOptions::default()
+    };
+    let ds = Dataset::open(&dir(), &opts).unwrap();
     let c = ds.calibration();
     assert_eq!((c.fx, c.fy, c.width, c.height), (292.5, 292.5, 320, 240));
     // Pixel centres: the VGA centre 320 maps to (320 + 0.5) / 2 - 0.5.

@@ -18,7 +18,7 @@
 //! - `--skips`: start frames, each a run that skips that many frames (default `0,300,600`).
 //! - `--json FILE`: every run's ATE and the summaries, as JSON.
 //! - `-- REPLAY ARGS`: given to every replay, to measure an option's effect (for example
-//!   `-- --depth-level 1` or `-- --backend-quota 2500`).
+//!   `-- --depth-level 0` or `-- --backend-quota 2500`).
 //!
 //! Each run is `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
 //! --skip-frames K [REPLAY ARGS]` (QVGA, the default back-end quota and schedule unless the

@@ -24,15 +24,21 @@ fn with_no_solve_under_way_the_split_does_nothing() {
     assert!(!backend.is_busy());
 }
 
-/// The sensor's depth noise reaches both solvers; the default sensor is the default weighting.
+/// The bundle-adjustment depth noise reaches both solvers, the tracker's does not; the default
+/// tunables are the default weighting.
 #[test]
 fn tunables_set_the_depth_noise_of_both_solvers() {
     let default = crate::config::Tunables::default();
     assert_eq!(BackendParams::DEFAULT.with_tunables(&default), BackendParams::DEFAULT);
-    let quiet = crate::config::Tunables { depth_noise_coeff_per_m: 2.0e-4, ..default };
+    assert_eq!(default.ba_depth_noise_coeff_per_m, 6.0e-4);
+    let quiet = crate::config::Tunables {
+        depth_noise_coeff_per_m: 2.0e-4,
+        ba_depth_noise_coeff_per_m: 1.0e-3,
+        ..default
+    };
     let p = BackendParams::DEFAULT.with_tunables(&quiet);
-    assert_eq!(p.local.depth_noise_coeff_per_m, 2.0e-4);
-    assert_eq!(p.global.depth_noise_coeff_per_m, 2.0e-4);
+    assert_eq!(p.local.depth_noise_coeff_per_m, 1.0e-3);
+    assert_eq!(p.global.depth_noise_coeff_per_m, 1.0e-3);
     assert!(p.is_valid());
 }
 

@@ -250,8 +250,8 @@ pub const MAX_DEPTH_LEVEL: u8 = 2;
 /// `2^l x 2^l` image pixels (image pixel `(x, y)` lies in depth pixel `(x >> l, y >> l)`), as
 /// [`downsample_depth_2x`](super::downsample_depth_2x) applied `l` times makes it. Every accessor
 /// takes and gives **image** pixels, so the pipeline reads depth the same way at any level. Level 1
-/// holds the depth in a quarter of the memory; the firmware keeps level 0, as level 1 costs the
-/// synthetic demo's SLAM accuracy (`memory-budget.md` gives the trade-off).
+/// holds the depth in a quarter of the memory: the reference board keeps level 1
+/// ([`QVGA`](crate::config::QVGA)`.depth_level`; `memory-budget.md` gives the trade-off).
 #[derive(Debug, Clone, Copy)]
 pub struct DepthView<'a> {
     raw: ImageView<'a, u16>,

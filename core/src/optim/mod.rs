@@ -105,7 +105,7 @@
 //! | type | capacities (rigs, cameras, points, observations) | bytes |
 //! | --- | --- | --- |
 //! | [`LocalBundleAdjuster`] | 65, 65, 1536, 8192 | 124,320 |
-//! | [`SegmentedBundleAdjuster`] | 16, 64, 1536, 8192 (`MAX_SEGMENTS`, `MAX_KEYFRAMES`) | 110,040 |
+//! | [`SegmentedBundleAdjuster`] | 8, 32, 1536, 8192 (`MAX_SEGMENTS`, `MAX_KEYFRAMES`) | 99,496 |
 //!
 //! Local and segmented BA never run at the same time, so one adjuster can serve both when RAM
 //! is tighter than code clarity: the back end does this (`backend::BoardBundleAdjuster`).

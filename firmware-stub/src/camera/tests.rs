@@ -204,8 +204,13 @@ fn a_frame_is_read_in_row_pair_bursts_and_halved_exactly() {
     downsample_gray_2x(&src, &mut GrayViewMut::packed(&mut want_g, 2, 2).unwrap()).unwrap();
     let src = ImageView::packed(&depth, 4, 4).unwrap();
     downsample_depth_2x(&src, &mut ImageViewMut::packed(&mut want_d, 2, 2).unwrap()).unwrap();
+    // The depth is halved once more (the store keeps it at level 1).
+    let mut want_d2 = [0u16; 1];
+    let src = ImageView::packed(&want_d, 2, 2).unwrap();
+    downsample_depth_2x(&src, &mut ImageViewMut::packed(&mut want_d2, 1, 1).unwrap()).unwrap();
     assert!(frame.gray.rows().flatten().copied().eq(want_g));
-    assert!(frame.depth.raw().rows().flatten().copied().eq(want_d));
+    assert_eq!(frame.depth.level(), 1);
+    assert!(frame.depth.raw().rows().flatten().copied().eq(want_d2));
     assert_eq!((frame.timestamp_s, frame.depth.depth_scale()), (0.0, 1000.0));
     assert_eq!(cam.frames(), 1);
     drop(cam);

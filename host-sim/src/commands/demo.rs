@@ -61,10 +61,10 @@ pub struct DemoArgs {
     #[arg(long, value_enum, default_value = "threaded")]
     pub schedule: datapath::Schedule,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
-    /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
-    /// is what the firmware does.
-    #[arg(long, default_value_t = 0, value_parser = depth_level_parser())]
-    pub depth_level: u8,
+    /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
+    /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
+    #[arg(long, value_parser = depth_level_parser())]
+    pub depth_level: Option<u8>,
 }
 
 /// Runs `demo`.
@@ -90,6 +90,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     write_pngs(&sequence.render(0)?, out, "frame0")?;
 
     let profile = args.profile.profile();
+    let depth_level = args.depth_level.unwrap_or(profile.depth_level);
     let frames = sequence.len();
     let started = Instant::now();
     if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule) {
@@ -109,7 +110,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
         }
         let mut source =
-            ProfileSource::new(sequence.into_source(), profile.downsample_levels, args.depth_level);
+            ProfileSource::new(sequence.into_source(), profile.downsample_levels, depth_level);
         let tunables = Tunables {
             depth_noise_coeff_per_m: sensor_depth_noise(args.depth_noise),
             ..Tunables::default()
@@ -123,7 +124,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             run.data.frames,
             super::replay::with_depth_level(
                 super::replay::run_note(args.mode, profile.name, (run.data.width, run.data.height)),
-                args.depth_level
+                depth_level
             ),
             tunables.depth_noise_coeff_per_m
         );
@@ -133,7 +134,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         return Ok(());
     }
     let mut source =
-        ProfileSource::new(sequence.into_source(), profile.downsample_levels, args.depth_level);
+        ProfileSource::new(sequence.into_source(), profile.downsample_levels, depth_level);
     let run = datapath::run(&mut source, frames)?;
     let elapsed = started.elapsed().as_secs_f64();
 

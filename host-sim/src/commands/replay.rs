@@ -110,10 +110,10 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
-    /// `DepthView` level): a frame store with a quarter of the depth memory at 1. The default, 0,
-    /// is what the firmware does.
-    #[arg(long, default_value_t = 0, value_parser = depth_level_parser())]
-    pub depth_level: u8,
+    /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
+    /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
+    #[arg(long, value_parser = depth_level_parser())]
+    pub depth_level: Option<u8>,
 }
 
 /// Runs `replay`.
@@ -122,6 +122,7 @@ pub struct ReplayArgs {
 /// Any dataset error (it names the file and line), or a file that cannot be written.
 pub fn run(args: &ReplayArgs) -> Result<()> {
     let profile = args.profile.profile();
+    let depth_level = args.depth_level.unwrap_or(profile.depth_level);
     let opts = DatasetOptions {
         calibration: match (&args.preset, &args.calibration) {
             (Some(name), _) => CalibrationSource::Preset(name.clone()),
@@ -131,7 +132,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         profile,
         skip_frames: args.skip_frames,
         max_frames: args.max_frames,
-        depth_level: args.depth_level,
+        depth_level: Some(depth_level),
         ..DatasetOptions::default()
     };
     let dataset = Dataset::open(&args.dataset, &opts)?;
@@ -157,7 +158,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         let wall_s = started.elapsed().as_secs_f64();
         let note = with_depth_level(
             run_note(args.mode, profile.name, (run.data.width, run.data.height)),
-            args.depth_level,
+            depth_level,
         );
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
         println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));

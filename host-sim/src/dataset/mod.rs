@@ -74,9 +74,10 @@ pub struct DatasetOptions {
     pub skip_frames: usize,
     /// Keep at most this many associated frames, the earliest (default: all).
     pub max_frames: Option<usize>,
-    /// Halve the depth this many more times than the gray image (default: 0; see
-    /// [`OwnedFrame::coarsen_depth`]).
-    pub depth_level: u8,
+    /// Halve the depth this many more times than the gray image (see
+    /// [`OwnedFrame::coarsen_depth`]); default `None`: the profile's `depth_level`, as the
+    /// firmware's frame store keeps it (1 at QVGA).
+    pub depth_level: Option<u8>,
     /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
     /// core's `Tunables::association_max_dt_s`, 0.02 s).
     pub max_dt_s: f64,
@@ -89,7 +90,7 @@ impl Default for DatasetOptions {
             profile: Config::default().profile,
             skip_frames: 0,
             max_frames: None,
-            depth_level: 0,
+            depth_level: None,
             max_dt_s: Tunables::default().association_max_dt_s,
         }
     }
@@ -226,7 +227,7 @@ impl Dataset {
         // The frames `load_frame` gives are registered, so their calibration has no depth camera.
         let calibration = Calibration { depth: None, ..sensor.downsampled(levels) };
         let profile = opts.profile;
-        let depth_level = opts.depth_level;
+        let depth_level = opts.depth_level.unwrap_or(profile.depth_level);
         Ok(Self {
             dir: dir.to_owned(),
             frames,

@@ -142,7 +142,12 @@ fn load_frame_decodes_and_halves() {
 
     let qvga = Dataset::open(tmp.path(), &opts(QVGA)).unwrap();
     let h = qvga.load_frame(1).unwrap();
-    assert_eq!((h.width, h.height, h.gray.len(), h.depth.len()), (4, 3, 12, 12));
+    // The depth at the profile's level 1: one reading per 2 x 2 gray pixels.
+    assert_eq!((h.width, h.height, h.gray.len(), h.depth.len()), (4, 3, 12, 2));
+    assert_eq!((h.depth_level, h.depth_size()), (1, (2, 1)));
+    let o = DatasetOptions { depth_level: Some(0), ..opts(QVGA) };
+    let h0 = Dataset::open(tmp.path(), &o).unwrap().load_frame(1).unwrap();
+    assert_eq!((h0.depth_level, h0.depth.len()), (0, 12));
     // Top-left block: pixels 0, 1, 8, 9 of the full image.
     let mean = [0, 1, 8, 9].iter().map(|&i| u16::from(gray_at(2, i))).sum::<u16>();
     assert_eq!(u16::from(h.gray[0]), (mean + 2) / 4);
