@@ -73,8 +73,9 @@ pub const VGA: Profile = Profile { name: "vga", downsample_levels: 0, depth_leve
 pub type QvgaGrayBuffer = [u8; (capacity::MAX_WIDTH / 2) * (capacity::MAX_HEIGHT / 2)];
 /// A raw depth frame buffer at the QVGA profile: 160x120, one reading per 2x2 block of the
 /// 320x240 gray image ([`QVGA`]`.depth_level` = 1).
-pub type QvgaDepthBuffer = [u16; (capacity::MAX_WIDTH >> (1 + QVGA.depth_level))
-    * (capacity::MAX_HEIGHT >> (1 + QVGA.depth_level))];
+pub type QvgaDepthBuffer = [u16; (capacity::MAX_WIDTH
+    >> (QVGA.downsample_levels + QVGA.depth_level))
+    * (capacity::MAX_HEIGHT >> (QVGA.downsample_levels + QVGA.depth_level))];
 /// A gray frame buffer at the VGA profile (640x480).
 pub type VgaGrayBuffer = [u8; capacity::MAX_WIDTH * capacity::MAX_HEIGHT];
 /// A raw depth frame buffer at the VGA profile (640x480).
@@ -102,10 +103,10 @@ pub struct Tunables {
     /// [`PoseParams::depth_noise_coeff_per_m`]: crate::tracking::PoseParams::depth_noise_coeff_per_m
     pub depth_noise_coeff_per_m: f32,
     /// The same coefficient as bundle adjustment weighs a keyframe's depth observation, in 1/m.
-    /// Default 6e-4 whatever the sensor, measured (see [`BackendParams::DEFAULT`], which says
+    /// Default [`BA_DEPTH_NOISE_COEFF_PER_M`], 6e-4 whatever the sensor, measured (its docs say
     /// why it differs from the tracker's).
     ///
-    /// [`BackendParams::DEFAULT`]: crate::backend::BackendParams::DEFAULT
+    /// [`BA_DEPTH_NOISE_COEFF_PER_M`]: crate::backend::BA_DEPTH_NOISE_COEFF_PER_M
     pub ba_depth_noise_coeff_per_m: f32,
 }
 
@@ -116,9 +117,7 @@ impl Default for Tunables {
             depth_max_m: 4.0,
             association_max_dt_s: 0.02,
             depth_noise_coeff_per_m: crate::tracking::PoseParams::DEFAULT.depth_noise_coeff_per_m,
-            ba_depth_noise_coeff_per_m: crate::backend::BackendParams::DEFAULT
-                .local
-                .depth_noise_coeff_per_m,
+            ba_depth_noise_coeff_per_m: crate::backend::BA_DEPTH_NOISE_COEFF_PER_M,
         }
     }
 }

@@ -124,14 +124,19 @@ impl HalfFrame {
         if row >= h {
             return Err(ImageError::SizeMismatch { expected: self.size, got: (w, row + 1) });
         }
-        let mut half = [0u16; MAX_SENSOR_WIDTH / 2];
-        let half = half.get_mut(..w).unwrap_or_default();
-        downsample_depth_row_pair(top, bottom, half)?;
         if row.is_multiple_of(2) {
-            self.depth_row.get_mut(..w).unwrap_or_default().copy_from_slice(half);
+            // Checked before anything is written: on an error the waiting row is kept.
+            downsample_depth_row_pair(
+                top,
+                bottom,
+                self.depth_row.get_mut(..w).unwrap_or_default(),
+            )?;
             self.depth_row_index = Some(row);
             return Ok(());
         }
+        let mut half = [0u16; MAX_SENSOR_WIDTH / 2];
+        let half = half.get_mut(..w).unwrap_or_default();
+        downsample_depth_row_pair(top, bottom, half)?;
         if self.depth_row_index.take() != Some(row - 1) {
             return Ok(());
         }

@@ -66,6 +66,22 @@ pub const BA_POINTS: usize = 1024;
 /// Observations of the back end's adjuster.
 pub const BA_OBSERVATIONS: usize = 6144;
 
+/// The depth noise bundle adjustment weighs a keyframe's depth observation with, in 1/m:
+/// 6e-4 (`sigma_z = k z^2`: 2.4 mm at 2 m), whatever the sensor
+/// ([`Tunables::ba_depth_noise_coeff_per_m`]), not the tracker's 3e-3.
+///
+/// Measured, not derived. On 7-Scenes (QVGA, depth at level 1, `cargo xtask spread`: 4
+/// RANSAC seeds x start frames 0, 300, 600) SLAM's ATE was 0.0382 m on average, better than
+/// odometry in 7 of 12 runs, with the tracker's 3e-3; 0.0336 m and 12 of 12 with 6e-4; 0.0340
+/// m and 12 of 12 with 1e-3. On the demo's exact synthetic depth, whose tracker is told 2e-4,
+/// SLAM over 16 start frames averaged 3.6 mm with 2e-4 and 3.1 mm with 6e-4. Why the two
+/// differ: the tracker compares one frame's depth with a landmark's running estimate, and
+/// its coefficient carries a margin for depth read a fraction of a pixel off the tracked point;
+/// bundle adjustment checks each keyframe's reading against the landmark's other keyframes,
+/// so it can trust depth more on a noisy sensor. On exact depth the reading is still
+/// interpolated on the coarse depth grid, and trusting it as exact costs accuracy.
+pub const BA_DEPTH_NOISE_COEFF_PER_M: f32 = 6.0e-4;
+
 /// The one adjuster the back end uses for local and global BA (they never run at once).
 pub type BoardBundleAdjuster = BundleAdjuster<BA_RIGS, BA_CAMERAS, BA_POINTS, BA_OBSERVATIONS>;
 
@@ -95,26 +111,17 @@ pub struct BackendParams {
 }
 
 impl BackendParams {
-    /// The defaults, documented per field, and the depth noise both solvers weigh a keyframe's
-    /// depth observation with: `depth_noise_coeff_per_m` 6e-4 1/m (`sigma_z = k z^2`: 2.4 mm at
-    /// 2 m), whatever the sensor ([`Tunables::ba_depth_noise_coeff_per_m`]), not the tracker's
-    /// 3e-3.
-    ///
-    /// Measured, not derived. On 7-Scenes (QVGA, depth at level 1, `cargo xtask spread`: 4
-    /// RANSAC seeds x start frames 0, 300, 600) SLAM's ATE was 0.0382 m on average, better than
-    /// odometry in 7 of 12 runs, with the tracker's 3e-3; 0.0336 m and 12 of 12 with 6e-4; 0.0340
-    /// m and 12 of 12 with 1e-3. On the demo's exact synthetic depth, whose tracker is told 2e-4,
-    /// SLAM over 16 start frames averaged 3.6 mm with 2e-4 and 3.1 mm with 6e-4. Why the two
-    /// differ: the tracker compares one frame's depth with a landmark's running estimate, and
-    /// its coefficient carries a margin for depth read a fraction of a pixel off the tracked point;
-    /// bundle adjustment checks each keyframe's reading against the landmark's other keyframes,
-    /// so it can trust depth more on a noisy sensor. On exact depth the reading is still
-    /// interpolated on the coarse depth grid, and trusting it as exact costs accuracy.
+    /// The defaults, documented per field; both solvers weigh a keyframe's depth observation
+    /// with [`BA_DEPTH_NOISE_COEFF_PER_M`].
     pub const DEFAULT: Self = Self {
-        local: BaParams { max_iterations: 5, depth_noise_coeff_per_m: 6.0e-4, ..BaParams::DEFAULT },
+        local: BaParams {
+            max_iterations: 5,
+            depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
+            ..BaParams::DEFAULT
+        },
         global: BaParams {
             max_iterations: 5,
-            depth_noise_coeff_per_m: 6.0e-4,
+            depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
             ..BaParams::DEFAULT
         },
         window_max: capacity::LOCAL_WINDOW_MAX,

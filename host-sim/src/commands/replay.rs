@@ -122,7 +122,6 @@ pub struct ReplayArgs {
 /// Any dataset error (it names the file and line), or a file that cannot be written.
 pub fn run(args: &ReplayArgs) -> Result<()> {
     let profile = args.profile.profile();
-    let depth_level = args.depth_level.unwrap_or(profile.depth_level);
     let opts = DatasetOptions {
         calibration: match (&args.preset, &args.calibration) {
             (Some(name), _) => CalibrationSource::Preset(name.clone()),
@@ -132,10 +131,11 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         profile,
         skip_frames: args.skip_frames,
         max_frames: args.max_frames,
-        depth_level: Some(depth_level),
+        depth_level: args.depth_level,
         ..DatasetOptions::default()
     };
     let dataset = Dataset::open(&args.dataset, &opts)?;
+    let depth_level = dataset.depth_level();
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());

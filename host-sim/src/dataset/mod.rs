@@ -288,6 +288,12 @@ impl Dataset {
         self.profile
     }
 
+    /// How many times more than the gray image the frames' depth is halved (the options', or
+    /// else the profile's).
+    pub fn depth_level(&self) -> u8 {
+        self.depth_level
+    }
+
     /// Listed images that are not replayed (missing on disk or unassociated), sorted by list and
     /// line. `Display` of each is a one-line warning.
     pub fn skipped(&self) -> &[SkippedFrame] {
