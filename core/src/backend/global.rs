@@ -32,6 +32,7 @@ impl Backend {
         self.points.clear();
         self.rig_before.clear();
         self.scratch.reset();
+        self.built_seq = self.newest_seq;
         let len = self.params.segment_keyframes.max(1);
         let mut segments: Vec<Segment, BA_CAMERAS> = Vec::new();
         for (id, k) in map.keyframes() {
@@ -48,11 +49,11 @@ impl Backend {
         }
         segments.sort_unstable_by_key(|e| e.0);
         let mut rigs: Vec<RigId, BA_CAMERAS> = Vec::new();
-        for (i, &(_, _, oldest)) in segments.iter().enumerate() {
+        for (i, &(s, _, oldest)) in segments.iter().enumerate() {
             let Some(k) = map.keyframe(oldest) else { continue };
             let t_sw = k.t_wc.inverse();
             let rig = self.ba.add_rig(&t_sw, i == 0)?;
-            if rigs.push(rig).is_err() || self.rig_before.push(t_sw).is_err() {
+            if rigs.push(rig).is_err() || self.rig_before.push((s, t_sw)).is_err() {
                 return Err(BaError::Full { kind: VariableKind::Rig, capacity: BA_CAMERAS });
             }
         }
@@ -60,7 +61,9 @@ impl Backend {
         let mut all: Vec<KeyFrameId, { capacity::MAX_KEYFRAMES }> = Vec::new();
         for (id, k) in map.keyframes() {
             let Some(r) = segments.iter().position(|e| e.0 == k.seq / len) else { continue };
-            let (Some(&rig), Some(t_sw)) = (rigs.get(r), self.rig_before.get(r)) else { continue };
+            let (Some(&rig), Some(&(_, t_sw))) = (rigs.get(r), self.rig_before.get(r)) else {
+                continue;
+            };
             let t_cs = k.t_wc.inverse() * t_sw.inverse();
             let cam = self.ba.add_camera(rig, &t_cs)?;
             if self.cameras.push((id, cam, r > 0)).is_err() || all.push(id).is_err() {
@@ -118,7 +121,11 @@ impl Backend {
     }
 
     /// Writes a finished global BA back: keyframe poses, joint landmarks, and every other
-    /// landmark moved with its segment.
+    /// landmark moved with its segment. Keyframes and landmarks made while the solve ran (after
+    /// `built_seq`) were not in the problem: they move with their keyframe's segment
+    /// (a landmark with its host's), or with the newest segment of the problem when theirs was
+    /// not in it, so that the map the front end tracks stays one rigid piece with the segment
+    /// it grew from.
     pub(super) fn write_back_global<const K: usize, const L: usize>(
         &mut self,
         map: &mut Map<K, L>,
@@ -131,18 +138,59 @@ impl Backend {
         }
         // Each segment's correction, old world to new world: `T_s'^-1 T_s`.
         let mut delta: Vec<Pose, BA_CAMERAS> = Vec::new();
-        for (r, t_sw) in self.rig_before.iter().enumerate() {
+        for (r, &(_, t_sw)) in self.rig_before.iter().enumerate() {
             let rig = self
                 .cameras
                 .iter()
                 .find_map(|&(_, cam, _)| self.ba.camera_rig(cam).filter(|rig| rig.index() == r));
-            let moved = rig.and_then(|rig| self.ba.rig_pose(rig)).unwrap_or(*t_sw);
+            let moved = rig.and_then(|rig| self.ba.rig_pose(rig)).unwrap_or(t_sw);
             let _ = delta.push(moved.inverse() * t_sw);
         }
-        for i in 0..L.min(capacity::MAX_LANDMARKS) {
-            if self.scratch.point(i).is_some() {
-                continue;
+        let len = self.params.segment_keyframes.max(1);
+        let built = self.built_seq;
+        // The rig index + 1 a keyframe made after the build moves with (0: none).
+        let rig_of_new = |seq: u32| -> u16 {
+            let s = seq / len;
+            let r = self.rig_before.iter().position(|e| e.0 == s);
+            // At most BA_CAMERAS (< 65,535) rigs.
+            r.map_or(self.rig_before.len(), |r| r + 1) as u16
+        };
+        // New keyframes (not cameras of the problem).
+        let mut new_keyframes: Vec<(KeyFrameId, u16), { capacity::MAX_KEYFRAMES }> = Vec::new();
+        for (id, k) in map.keyframes() {
+            if k.seq > built && !self.cameras.iter().any(|c| c.0 == id) {
+                let _ = new_keyframes.push((id, rig_of_new(k.seq)));
             }
+        }
+        for &(id, r) in &new_keyframes {
+            let Some(d) = r.checked_sub(1).and_then(|r| delta.get(usize::from(r))) else {
+                continue;
+            };
+            if let Some(k) = map.keyframe_mut(id) {
+                k.t_wc = d * k.t_wc;
+            }
+        }
+        // Which rig each landmark slot moves with (rig index + 1; 0: not moved), decided before
+        // any pose changes: problem points are written below, landmarks hosted by a new keyframe
+        // move with it, the others with the segment that observed them at the build.
+        for (id, lm) in map.landmarks() {
+            let slot = id.0.index();
+            let in_problem = self
+                .scratch
+                .point(slot)
+                .and_then(|p| self.points.get(p))
+                .is_some_and(|e| e.0 == id);
+            let host_seq = map.keyframe(lm.host).map(|k| k.seq);
+            let rig = match host_seq {
+                _ if in_problem => 0,
+                Some(seq) if seq > built => rig_of_new(seq),
+                _ => self.scratch.first_segment.get(slot).copied().unwrap_or(0),
+            };
+            if let Some(f) = self.scratch.first_segment.get_mut(slot) {
+                *f = rig;
+            }
+        }
+        for i in 0..L.min(capacity::MAX_LANDMARKS) {
             let seg = self.scratch.first_segment.get(i).copied().unwrap_or(0);
             let Some(d) = seg.checked_sub(1).and_then(|r| delta.get(usize::from(r))) else {
                 continue;

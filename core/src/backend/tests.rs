@@ -51,3 +51,89 @@ fn advance_solve_checks_the_parameters_like_step() {
     let mut map = BoardMap::new();
     assert_eq!(backend.step(&mut map, &camera(), 5_000), Err(BackendError::InvalidParams));
 }
+
+/// A keyframe made while a segmented global BA solves (and the landmark it hosts) was not in the
+/// problem; the write-back moves both with their segment, so the newest keyframe keeps its pose
+/// relative to the segment it grew from and still sees its landmark where it measured it.
+#[test]
+fn global_ba_moves_what_was_made_during_the_solve_with_its_segment() {
+    use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
+
+    use super::BaKind;
+    use crate::geometry::Pose;
+    use crate::map::{KeyFrameId, Observation};
+
+    let cam = camera();
+    // Cameras 0.1 m apart along x, looking along +z; landmarks 2-3 m ahead.
+    let truth = |i: u32| Pose::translation(0.1 * i as f32, 0.0, 0.0);
+    let points: [Point3<f32>; 48] = core::array::from_fn(|j| {
+        let (c, r) = ((j % 8) as f32, (j / 8) as f32);
+        Point3::new(-0.8 + 0.25 * c, -0.5 + 0.2 * r, 2.0 + 0.1 * ((j * 7) % 10) as f32)
+    });
+    // Segment 1 (keyframes 2 and 3, and the one made during the solve) drifted by `drift`.
+    let drift = Pose::from_parts(
+        Translation3::new(0.02, -0.01, 0.015),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.01),
+    );
+    let believed = |i: u32| if i >= 2 { drift * truth(i) } else { truth(i) };
+    let observe = |map: &mut BoardMap, kf: KeyFrameId, i: u32, lm, p_w: &Point3<f32>| {
+        let p_c = truth(i).inverse() * p_w;
+        let uv = cam.project(&p_c).unwrap_or_else(|| unreachable!("every point is in view"));
+        let obs = Observation::new(lm, (uv.x, uv.y), Some(p_c.z));
+        map.add_observation(kf, obs.unwrap_or_else(|| unreachable!())).unwrap();
+    };
+    let mut map = BoardMap::new();
+    let kfs: [KeyFrameId; 4] =
+        core::array::from_fn(|i| map.add_keyframe(believed(i as u32), i as f64).unwrap());
+    for p in &points {
+        let lm = map.add_landmark(*p, kfs[0]).unwrap();
+        for (i, &kf) in kfs.iter().enumerate() {
+            observe(&mut map, kf, i as u32, lm, p);
+        }
+    }
+    let params = BackendParams { segment_keyframes: 2, ..BackendParams::DEFAULT };
+    let mut backend = Backend::with_params(params);
+    backend.keyframe_added(kfs[3], 3);
+    backend.pending = None; // no local BA first: the global one is due
+    assert_eq!(backend.step(&mut map, &cam, 5_000), Ok(BackendStatus::Built(BaKind::Global)));
+
+    // While it solves, the front end makes keyframe 4 (segment 2, not in the problem) and a
+    // landmark hosted by it, both in segment 1's drifted world.
+    let kf4 = map.add_keyframe(believed(4), 4.0).unwrap();
+    let p_new = drift * Point3::new(0.3, 0.1, 2.5);
+    let lm_new = map.add_landmark(p_new, kf4).unwrap();
+    observe(&mut map, kf4, 4, lm_new, &(drift.inverse() * p_new));
+    backend.keyframe_added(kf4, 4);
+    let relative = |map: &BoardMap| {
+        let (k3, k4) = (map.keyframe(kfs[3]).unwrap(), map.keyframe(kf4).unwrap());
+        k3.t_wc.inverse() * k4.t_wc
+    };
+    let seen_from_4 = |map: &BoardMap| {
+        map.keyframe(kf4).unwrap().t_wc.inverse() * map.landmark(lm_new).unwrap().p_w
+    };
+    let (relative_before, seen_before) = (relative(&map), seen_from_4(&map));
+    let k3_before = map.keyframe(kfs[3]).unwrap().t_wc;
+
+    let mut finished = false;
+    for _ in 0..1_000 {
+        match backend.step(&mut map, &cam, 5_000) {
+            Ok(BackendStatus::Finished(BaKind::Global, _)) => {
+                finished = true;
+                break;
+            }
+            Ok(BackendStatus::Solving(BaKind::Global)) => {}
+            other => panic!("unexpected step {other:?}"),
+        }
+    }
+    assert!(finished, "the global BA finished");
+    assert_eq!(backend.stats().global_runs, 1);
+    let k3_after = map.keyframe(kfs[3]).unwrap().t_wc;
+    let moved = (k3_after.translation.vector - k3_before.translation.vector).norm();
+    assert!(moved > 0.01, "segment 1 moved back toward the truth ({moved} m)");
+    let error = (k3_after.translation.vector - truth(3).translation.vector).norm();
+    assert!(error < 0.005, "segment 1 is within 5 mm of the truth ({error} m)");
+    let r = relative(&map);
+    assert!((r.translation.vector - relative_before.translation.vector).norm() < 1e-4);
+    assert!(r.rotation.angle_to(&relative_before.rotation) < 1e-4);
+    assert!((seen_from_4(&map) - seen_before).norm() < 1e-4);
+}
