@@ -28,8 +28,8 @@ const HALF_PIXELS: usize = (MAX_SENSOR_WIDTH / 2) * (MAX_SENSOR_HEIGHT / 2);
 const DEPTH_LEVEL: u8 = QVGA.depth_level;
 
 /// A QVGA gray image and its 160 x 120 depth, the only frame storage of the board (76,800 +
-/// 38,400 bytes, and the 640-byte depth row being halved). Zeroed by [`HalfFrame::new`] (`const`, so it can initialize
-/// a `static` in `.bss`).
+/// 38,400 bytes, and the 640-byte depth row being halved). Zeroed by [`HalfFrame::new`]
+/// (`const`, so it can initialize a `static` in `.bss`).
 #[derive(Debug)]
 pub struct HalfFrame {
     gray: QvgaGrayBuffer,

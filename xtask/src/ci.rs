@@ -128,14 +128,7 @@ fn thumb_build_without_allocator() -> Result<()> {
 
 /// Fails when the ELF at `elf` holds an allocator symbol; prints its flash and RAM figures.
 fn no_allocator_in(elf: &Path) -> Result<()> {
-    let out = Command::new("arm-none-eabi-nm")
-        .arg(elf)
-        .output()
-        .context("arm-none-eabi-nm not found: apt-get install binutils-arm-none-eabi")?;
-    if !out.status.success() {
-        bail!("arm-none-eabi-nm failed on {}", elf.display());
-    }
-    let symbols = String::from_utf8_lossy(&out.stdout);
+    let symbols = crate::firmware::nm(elf, &[])?;
     let alloc: Vec<&str> = symbols
         .lines()
         .filter(|l| {

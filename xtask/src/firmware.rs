@@ -125,6 +125,22 @@ pub fn decode_defmt(elf: &[u8], stream: &[u8]) -> (Vec<String>, Option<String>) 
     }
 }
 
+/// The symbol table of an ELF: `arm-none-eabi-nm ARGS elf`'s output.
+///
+/// # Errors
+/// The tool missing (with the package to install) or failing.
+pub fn nm(elf: &Path, args: &[&str]) -> Result<String> {
+    let out = Command::new("arm-none-eabi-nm")
+        .args(args)
+        .arg(elf)
+        .output()
+        .context("arm-none-eabi-nm not found: apt-get install binutils-arm-none-eabi")?;
+    if !out.status.success() {
+        bail!("arm-none-eabi-nm failed on {} ({})", elf.display(), out.status);
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
 /// Section sizes of an ELF from `arm-none-eabi-size -A`: `(name, bytes)` of the sections that
 /// take flash or RAM (None if the tool is missing).
 pub fn elf_sections(elf: &Path) -> Option<Vec<(String, u64)>> {

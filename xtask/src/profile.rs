@@ -69,7 +69,7 @@ pub fn run(args: &[String]) -> Result<()> {
     replay::run(&root, &replay)?;
     let frames = FirmwareRun::read(&out.join("cost.json"))?.frames.len();
     let elf = firmware::elf_path(&root, "qemu-mps2");
-    let symbols = parse_symbols(&nm(&elf)?);
+    let symbols = parse_symbols(&firmware::nm(&elf, &["-C", "-n"])?);
     let blocks = fs::read_to_string(&blocks_file)
         .with_context(|| format!("reading {} (did the plugin load?)", blocks_file.display()))?;
     let functions = attribute(&parse_blocks(&blocks)?, &symbols);
@@ -139,18 +139,6 @@ fn compile_plugin(source: &Path, plugin: &Path) -> Result<()> {
         bail!("cc failed on {} ({status})", source.display());
     }
     Ok(())
-}
-
-/// `arm-none-eabi-nm -C -n elf`.
-fn nm(elf: &Path) -> Result<String> {
-    let out =
-        Command::new("arm-none-eabi-nm").args(["-C", "-n"]).arg(elf).output().map_err(|e| {
-            anyhow!("arm-none-eabi-nm: {e} (apt-get install binutils-arm-none-eabi)")
-        })?;
-    if !out.status.success() {
-        bail!("arm-none-eabi-nm failed on {} ({})", elf.display(), out.status);
-    }
-    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
 /// The code symbols of `nm -C -n` output (types `t`, `T`, `w`, `W`), sorted by address, with the

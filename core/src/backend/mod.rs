@@ -124,19 +124,19 @@ pub struct BackendParams {
 }
 
 impl BackendParams {
-    /// The defaults, documented per field; both solvers weigh a keyframe's depth observation
-    /// with [`BA_DEPTH_NOISE_COEFF_PER_M`].
+    /// The solver parameters both BAs start from: at most 5 iterations, a keyframe's depth
+    /// observation weighed with [`BA_DEPTH_NOISE_COEFF_PER_M`].
+    const SOLVER: BaParams = BaParams {
+        max_iterations: 5,
+        depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
+        ..BaParams::DEFAULT
+    };
+
+    /// The defaults, documented per field; both solvers run at most 5 iterations and weigh a
+    /// keyframe's depth observation with [`BA_DEPTH_NOISE_COEFF_PER_M`].
     pub const DEFAULT: Self = Self {
-        local: BaParams {
-            max_iterations: 5,
-            depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
-            ..BaParams::DEFAULT
-        },
-        global: BaParams {
-            max_iterations: 5,
-            depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
-            ..BaParams::DEFAULT
-        },
+        local: Self::SOLVER,
+        global: Self::SOLVER,
         window_max: capacity::LOCAL_WINDOW_MAX,
         min_shared_landmarks: 10,
         window_levels: 2,
