@@ -40,7 +40,7 @@
 //! A local BA goes first: a global BA starts only when no keyframe waits for one. When the
 //! front end makes keyframes faster than local BAs finish, a global BA therefore never starts.
 //! That is the case on 7-Scenes with the board's 32-keyframe map (a keyframe every 17 frames,
-//! 29 local BAs for 59 keyframes; `memory-budget.md`), and on the demo no global BA finishes
+//! 16 local BAs for 57 keyframes at the default quota of 2,500 units; `memory-budget.md`), and on the demo no global BA finishes
 //! before the last frame (report.json `global_runs` 0 on both). Measured and not adopted: the
 //! global BA first when a segment completes. With segments of 16 keyframes, 7-Scenes SLAM over
 //! `cargo xtask spread` averaged 0.0339 m against 0.0336 m, and the demo's default run went from

@@ -13,8 +13,13 @@
 //!    best `guide_landmarks` (most often found first) are matched with a wide search
 //!    ([`track_patch`](crate::matching::track_patch), each landmark's template warped by the map
 //!    the predicted motion induces on it). Their robust pose is the start of the final stage.
-//!    When they give none, the same landmarks are searched with the affine bank
-//!    ([`match_region`](crate::matching::match_region)) instead.
+//!    When the final stage from them is weak (under 60% of the previous frame's inliers) or they
+//!    give no pose, cheaper-first attempts follow: the prediction itself, the guides and the
+//!    prediction from a rotation re-estimated on small blurry images, the guides with a wider
+//!    search; the strongest final stage wins. Only when none gave a pose at all are the same
+//!    landmarks searched with the affine bank
+//!    ([`match_region`](crate::matching::match_region)), the costliest attempt (see
+//!    `frontend_match.rs`).
 //! 4. Final stage: from the guides' pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
 //!    are matched with a small search and sub-pixel refinement; [`track_pose`](super::track_pose) estimates `t_cw`
 //!    from the matches (pixel and, where the frame has it, depth).
@@ -419,6 +424,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     ) -> FrameResult {
         let was_lost = self.state == FrontendState::Lost;
         let summary = self.match_landmarks(frame, cam, map, predicted_t_cw);
+        // The inlier mask indexes the scratch: it must hold the winning final stage.
+        debug_assert!(
+            summary.estimate.is_none() || summary.matches == self.correspondences.len(),
+            "the scratch does not hold the winning final stage"
+        );
         let lost = FrameResult {
             t_wc: predicted_t_cw.inverse(),
             state: FrontendState::Lost,

@@ -31,7 +31,12 @@ enum Attempt {
     Prediction(GuideStage),
 }
 
-/// The attempts in order of cost (see [`Frontend::match_landmarks`]).
+/// The attempts in order of cost (see [`Frontend::match_landmarks`]). The last, the affine bank,
+/// runs only when no earlier attempt gave a pose at all, weak or not: it costs about as much as
+/// ten final stages (on the board, frame 145 of 7-Scenes at back-end quota 2,500 cost 82.94 M
+/// instructions with it and 36.57 M without), so it is kept for frames that would be lost
+/// otherwise. A weak pose (at least `min_inliers` inliers) is tracking; the keyframe rule then
+/// renews the local map.
 const ATTEMPTS: [Attempt; 6] = [
     Attempt::Guides(GuideStage::MotionModel, false),
     Attempt::Prediction(GuideStage::MotionModel),
@@ -75,8 +80,10 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     /// Matches the local map into `frame` and estimates the pose: each attempt of the module
     /// documentation gives a start pose for the final stage, in order of cost, until a final
     /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers); the strongest
-    /// result wins. Leaves the winner's candidates, correspondences and their sources in the
-    /// scratch vectors.
+    /// result wins, and the bank is skipped once any attempt gave a pose (see [`ATTEMPTS`]).
+    /// Leaves the winner's candidates, correspondences and their sources in the scratch vectors:
+    /// when a later attempt (a final stage, or guides, which use the same scratch) replaced
+    /// them, the winner's final stage is run again.
     pub(super) fn match_landmarks<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
@@ -113,7 +120,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                         (_, true) => Matcher::Patch(&p.guide_wide),
                         (_, false) => Matcher::Patch(&p.guide),
                     };
+                    if matches!(matcher, Matcher::Bank(_)) && best.is_some() {
+                        break;
+                    }
                     let size = frame.gray.size();
+                    // The guides replace the scratch the last final stage left.
+                    last_start = None;
                     self.collect_candidates(cam, map, &prediction, matcher.margin());
                     spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
                     self.match_candidates(frame, cam, map, &prediction, matcher);

@@ -22,8 +22,8 @@ pub struct FrontendParams {
     /// Final stage: every selected landmark tracked from the guides' pose. Default
     /// [`TrackParams::FINE`].
     pub track: TrackParams,
-    /// Recovery: the affine-bank region matching of the guide landmarks, used when the guides
-    /// give no pose (its `initial_affine` is replaced per landmark by the map the predicted motion
+    /// Recovery: the affine-bank region matching of the guide landmarks, used when no cheaper
+    /// attempt gave a pose (its `initial_affine` is replaced per landmark by the map the predicted motion
     /// induces). Default: [`MatchParams::DEFAULT`] with a 9 x 9 template (the landmark templates
     /// are 16 x 16 pixels) and no forward-backward check (it would search inside the template).
     pub matching: MatchParams,
