@@ -21,8 +21,9 @@
 //!    ([`match_region`](crate::matching::match_region)), the costliest attempt (see
 //!    `frontend_match.rs`).
 //! 4. Final stage: from the guides' pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
-//!    are matched with a small search and sub-pixel refinement; [`track_pose`](super::track_pose) estimates `t_cw`
-//!    from the matches (pixel and, where the frame has it, depth).
+//!    are matched with a small search and sub-pixel refinement;
+//!    [`track_pose`](super::track_pose) estimates `t_cw` from the matches (pixel and, where the
+//!    frame has it, depth).
 //! 5. Bookkeeping: each landmark counts the frames it was visible and found (a pose inlier);
 //!    landmarks found too rarely or not for long are dropped from the local map (not from the
 //!    map). In odometry mode (`fuse_depth`) each inlier's measured depth is fused into its

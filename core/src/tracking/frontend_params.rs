@@ -23,9 +23,10 @@ pub struct FrontendParams {
     /// [`TrackParams::FINE`].
     pub track: TrackParams,
     /// Recovery: the affine-bank region matching of the guide landmarks, used when no cheaper
-    /// attempt gave a pose (its `initial_affine` is replaced per landmark by the map the predicted motion
-    /// induces). Default: [`MatchParams::DEFAULT`] with a 9 x 9 template (the landmark templates
-    /// are 16 x 16 pixels) and no forward-backward check (it would search inside the template).
+    /// attempt gave a pose (its `initial_affine` is replaced per landmark by the map the
+    /// predicted motion induces). Default: [`MatchParams::DEFAULT`] with a 9 x 9 template (the
+    /// landmark templates are 16 x 16 pixels) and no forward-backward check (it would search
+    /// inside the template).
     pub matching: MatchParams,
     /// Landmarks matched in the guide stage (and in a recovery), spread over a 4 x 3 grid.
     /// Default 24.
