@@ -42,12 +42,11 @@
 //! That is the case on 7-Scenes with the board's 32-keyframe map (a keyframe every 17 frames,
 //! 16 local BAs for 57 keyframes at the default quota of 2,500 units; `memory-budget.md`), and
 //! on the demo no global BA finishes before the last frame (report.json `global_runs` 0 on
-//! both). Measured and not adopted: the
-//! global BA first when a segment completes. With segments of 16 keyframes, 7-Scenes SLAM over
-//! `cargo xtask spread` averaged 0.0339 m against 0.0336 m, and the demo's default run went from
-//! 2.97 mm to 4.08 mm (its mean over 16 start frames from 3.07 to 2.96 mm). With segments of 8,
-//! 7-Scenes averaged 0.0362 m (max 0.0464, SLAM better than odometry in 9 of 12 runs instead of
-//! 12), and the demo gave 2.99 mm (mean 2.99 mm).
+//! both). Measured and not adopted: the global BA first when a segment completes. With segments
+//! of 16 keyframes, 7-Scenes SLAM over `cargo xtask spread` averaged 0.0339 m against 0.0336 m,
+//! and the demo's default run went from 2.97 mm to 4.08 mm (its mean over 16 start frames from
+//! 3.07 to 2.96 mm). With segments of 8, 7-Scenes averaged 0.0362 m (max 0.0464, SLAM better
+//! than odometry in 9 of 12 runs instead of 12), and the demo gave 2.99 mm (mean 2.99 mm).
 
 mod global;
 mod local;
