@@ -9,18 +9,20 @@
 //! 2. Without tracked landmarks (state [`FrontendState::Initializing`], or after a loss): make a
 //!    keyframe of the frame at the predicted pose (step 6). The first keyframe defines the world
 //!    frame (identity pose).
-//! 3. Guides: the tracked landmarks predicted inside the image are spread over a 4 x 3 grid and the
-//!    best `guide_landmarks` (most often found first) are matched with a wide search
-//!    ([`track_patch`](crate::matching::track_patch), each landmark's template warped by the map
-//!    the predicted motion induces on it). Their robust pose is the start of the final stage.
-//!    When the final stage from them is weak (under 60% of the previous frame's inliers) or they
-//!    give no pose, cheaper-first attempts follow: the prediction itself, the guides and the
-//!    prediction from a rotation re-estimated on small blurry images, the guides with a wider
-//!    search; the strongest final stage wins. Only when none gave a pose at all are the same
-//!    landmarks searched with the affine bank
+//! 3. Start pose of the final stage: first the prediction itself; its final stage is kept when it
+//!    has at least 80% of the previous frame's inliers. Otherwise (and first, when the prediction
+//!    turns more than a degree since the last frame) the guides: the tracked landmarks predicted
+//!    inside the image are spread over a 4 x 3 grid and the best `guide_landmarks` (most often
+//!    found first) are matched with a wide search ([`track_patch`](crate::matching::track_patch),
+//!    each landmark's template warped by the map the predicted motion induces on it); their
+//!    robust pose is the start of the final stage. When the final stage from them is weak (under
+//!    60% of the previous frame's inliers) or they give no pose, cheaper-first attempts follow:
+//!    the guides and the prediction from a rotation re-estimated on small blurry images, the
+//!    guides with a wider search; the strongest final stage wins. Only when none gave a pose at
+//!    all are the same landmarks searched with the affine bank
 //!    ([`match_region`](crate::matching::match_region)), the costliest attempt (see
-//!    `frontend_match.rs`).
-//! 4. Final stage: from the guides' pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
+//!    `frontend_match.rs`, which gives the measurements behind the order).
+//! 4. Final stage: from the start pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
 //!    are matched with a small search and sub-pixel refinement;
 //!    [`track_pose`](super::track_pose) estimates `t_cw` from the matches (pixel and, where the
 //!    frame has it, depth).
@@ -128,8 +130,8 @@ pub enum GuideStage {
     WideSearch,
     /// The guides matched by the affine bank.
     AffineBank,
-    /// No guide attempt gave a pose (the final stage started from the prediction), or the frame
-    /// was not tracked against the local map.
+    /// The final stage started from the prediction itself (tried first, or after guides that
+    /// gave no pose), or the frame was not tracked against the local map.
     None,
 }
 

@@ -17,9 +17,38 @@ const GUIDE_GRID: (usize, usize) = (4, 3);
 /// Grid the final stage's landmarks are spread over (columns, rows).
 const TRACK_GRID: (usize, usize) = (8, 6);
 
-/// A final stage with fewer inliers than this fraction of the previous frame's is retried from
-/// the motion model's prediction.
+/// A final stage with fewer inliers than this fraction of the previous frame's is weak: the next
+/// attempt follows (the first attempt's own fraction is [`PREDICTION_FRACTION`]).
 const WEAK_FRACTION: f32 = 0.6;
+
+/// The first attempt of [`ATTEMPTS`], the final stage straight from the motion model's
+/// prediction, is kept when it has at least this fraction of the previous frame's inliers; below
+/// it the guides follow, and the strongest final stage wins. The guides (24 landmarks searched
+/// at radius 3, each about twice a final-stage track) are thus paid for only on frames the
+/// prediction serves poorly.
+///
+/// Measured on 7-Scenes with the prediction first on every frame (no [`GUIDES_FIRST_TURN_RAD`]),
+/// against the guides first (`cargo xtask budgets` over 1000 frames on the Cortex-M4; `cargo
+/// xtask spread`, 12 start frames; back-end quota 2,500): at 0.8 the pipeline median went
+/// 7.77 -> 6.37 M instructions, SLAM ATE mean 0.0338 -> 0.0340 m, SLAM better than odometry in
+/// 10 of 12 runs instead of 12. At 0.6 (the weak fraction: the prediction kept whenever it
+/// tracks) the inliers dip from frame to frame, the keyframe rule fires on the dips (109
+/// keyframes instead of 57 in the SLAM run) and SLAM loses to odometry (0.0370 against
+/// 0.0365 m, 4 of 12); at 0.85 SLAM 0.0354 m, 8 of 12, median 6.45 M; at 0.9 most frames pay
+/// for both and the median is 8.44 M.
+const PREDICTION_FRACTION: f32 = 0.8;
+
+/// When the motion model predicts a turn of more than this since the last frame (1 degree), the
+/// guides go first ([`GUIDES_FIRST`]): the prediction alone served the demo's fast-rotation
+/// variant poorly. Its SLAM ATE over 16 start frames (0, 3, ..., 45; a temporary test, not
+/// committed) was 5.05 mm with the prediction first on every frame, 3.15 mm with the guides
+/// first on every frame, and with this gate at 2, 1.5, 1.2, 1 and 0.8 degrees 4.23, 3.83,
+/// 3.52, 3.25 and 3.19 mm. 7-Scenes turns 0.43 degrees a frame (median; 0.77 at the 90th
+/// percentile), so its frames nearly all take the prediction first; at 1 degree its `spread`
+/// gave odometry 0.0375 m and SLAM 0.0324 m (max 0.0371, better than odometry in 12 of 12),
+/// and at 0.8 degrees SLAM 0.0355 m (8 of 12, default run 0.0537 m, over issue 4's bar), at
+/// 1.2 degrees 0.0341 m but the demo's default SLAM run 3.32 mm (over its 3 mm bar).
+const GUIDES_FIRST_TURN_RAD: f32 = core::f32::consts::PI / 180.0;
 
 /// One way to find the final stage's start pose.
 #[derive(Clone, Copy)]
@@ -31,21 +60,30 @@ enum Attempt {
     Prediction(GuideStage),
 }
 
-/// The attempts in order of cost (see [`Frontend::match_landmarks`]). The last, the affine bank,
-/// runs only when no earlier attempt gave a pose at all, weak or not: its 24 region matches
-/// cost about ten final stages (host wall clock on 7-Scenes: 3.1 ms against about 0.3 ms), and
-/// on the board frame 145 of 7-Scenes (back-end quota 2,500) cost 82.94 M instructions with it,
-/// 36.57 M without it (a rerun of the winning final stage included), so it is kept for frames
-/// that would be lost otherwise. A weak pose (at least `min_inliers` inliers) is tracking; the
+/// The attempts in order of cost (see [`Frontend::match_landmarks`]); on a frame turning fast,
+/// [`GUIDES_FIRST`]. The last, the affine bank, runs only when no earlier attempt gave a pose at
+/// all, weak or not: its 24 region matches cost about ten final stages (host wall clock on
+/// 7-Scenes: 3.1 ms against about 0.3 ms), and on the board frame 145 of 7-Scenes (back-end quota
+/// 2,500, the guides then first on every frame) cost 82.94 M instructions with it, 36.57 M
+/// without it (a rerun of the winning final stage included), so it is kept for frames that
+/// would be lost otherwise. A weak pose (at least `min_inliers` inliers) is tracking; the
 /// keyframe rule then renews the local map.
 const ATTEMPTS: [Attempt; 6] = [
-    Attempt::Guides(GuideStage::MotionModel, false),
     Attempt::Prediction(GuideStage::MotionModel),
+    Attempt::Guides(GuideStage::MotionModel, false),
     Attempt::Guides(GuideStage::SmallImageRotation, false),
     Attempt::Prediction(GuideStage::SmallImageRotation),
     Attempt::Guides(GuideStage::MotionModel, true),
     Attempt::Guides(GuideStage::AffineBank, false),
 ];
+
+/// The order on a frame the motion model predicts turning faster than [`GUIDES_FIRST_TURN_RAD`]:
+/// the guides from the motion model before the prediction itself.
+const GUIDES_FIRST: [Attempt; 6] = {
+    let mut attempts = ATTEMPTS;
+    attempts.swap(0, 1);
+    attempts
+};
 
 /// What [`Frontend::match_landmarks`] did.
 #[derive(Debug, Clone, Copy)]
@@ -80,8 +118,9 @@ impl Matcher<'_> {
 impl<const W: usize, const H: usize> Frontend<W, H> {
     /// Matches the local map into `frame` and estimates the pose: each attempt of the module
     /// documentation gives a start pose for the final stage, in order of cost, until a final
-    /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers); the strongest
-    /// result wins, and the bank is skipped once any attempt gave a pose (see [`ATTEMPTS`]).
+    /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers, or
+    /// [`PREDICTION_FRACTION`] for the prediction tried first); the strongest result wins, and
+    /// the bank is skipped once any attempt gave a pose (see [`ATTEMPTS`] and [`GUIDES_FIRST`]).
     /// Leaves the winner's candidates, correspondences and their sources in the scratch vectors:
     /// when a later attempt (a final stage, or guides, which use the same scratch) replaced
     /// them, the winner's final stage is run again.
@@ -94,13 +133,17 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     ) -> MatchSummary {
         let p = self.params;
         // Counts are at most 512: exact in f32.
-        let strong_at = WEAK_FRACTION * self.previous_inliers as f32;
+        let previous = self.previous_inliers as f32;
         let mut best: Option<(Pose, GuideStage, usize, PoseEstimate)> = None;
         let mut last_start = None;
         let mut guides = 0;
         // The small-image rotation's prediction, computed once when first needed.
         let mut rotated: Option<Option<Pose>> = None;
-        for attempt in ATTEMPTS {
+        let turning = self.previous_t_cw.is_some_and(|prev| {
+            (predicted_t_cw * prev.inverse()).rotation.angle() > GUIDES_FIRST_TURN_RAD
+        });
+        let order = if turning { GUIDES_FIRST } else { ATTEMPTS };
+        for (i, attempt) in order.into_iter().enumerate() {
             let stage = match attempt {
                 Attempt::Guides(stage, _) | Attempt::Prediction(stage) => stage,
             };
@@ -146,7 +189,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 best = Some((start.0, start.1, matches, est));
             }
             // Counts are at most 512: exact in f32.
-            if est.num_inliers as f32 >= strong_at {
+            let fraction = match attempt {
+                Attempt::Prediction(GuideStage::MotionModel) if i == 0 => PREDICTION_FRACTION,
+                _ => WEAK_FRACTION,
+            };
+            if est.num_inliers as f32 >= fraction * previous {
                 return MatchSummary { matches, guides, stage: start.1, estimate };
             }
         }

@@ -19,8 +19,8 @@ pub struct FrontendParams {
     /// Guide stage again, when the first gave no pose: a wider search. Default
     /// [`TrackParams::GUIDE_WIDE`].
     pub guide_wide: TrackParams,
-    /// Final stage: every selected landmark tracked from the guides' pose. Default
-    /// [`TrackParams::FINE`].
+    /// Final stage: every selected landmark tracked from the start pose (the prediction's, or
+    /// the guides'). Default [`TrackParams::FINE`].
     pub track: TrackParams,
     /// Recovery: the affine-bank region matching of the guide landmarks, used when no cheaper
     /// attempt gave a pose (its `initial_affine` is replaced per landmark by the map the
