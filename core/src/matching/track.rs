@@ -22,8 +22,8 @@
 //! 4. refines the translation by inverse-compositional Lucas-Kanade with the template's
 //!    photometric directions (offset and gain) projected out, so a brightness change does not bias
 //!    the position; the 2 x 2 normal matrix is built once;
-//! 5. accepts the result when its ZNCC is at least [`TrackParams::min_zncc`] and refinement moved it
-//!    at most [`TrackParams::max_refine_shift_px`] from the best integer candidate.
+//! 5. accepts the result when its ZNCC is at least [`TrackParams::min_zncc`] and refinement moved
+//!    it at most [`TrackParams::max_refine_shift_px`] from the best integer candidate.
 //!
 //! There is no forward-backward check here: the patch is always the keyframe's (tracking is
 //! frame-to-keyframe, so errors do not chain), and the robust pose estimate that follows rejects
@@ -36,13 +36,15 @@
 //! bilinear samples for the template; for the column sums, `(2h + 1)(2R + 2h + 1)` pixels for
 //! the first row of candidates and `2s (2R + 2h + 1)` for each coarse row after it (rows `s`
 //! apart; from scratch when `s >= 2h + 1`), and per candidate `n` integer multiply-adds
-//! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates); then per Lucas-Kanade step `n` shared-weight
-//! samples and ~10 flops each. Measured with callgrind on 7-Scenes QVGA templates (host x86_64,
-//! release build) before the column sums slid (commit 5a4ce29): about 30 k instructions per call
-//! at [`TrackParams::FINE`] (`h = 4`, `R = 1`, `s = 1`: 9 candidates; the template warp is a
-//! quarter of it, the Lucas-Kanade steps, typically 2-4 plus the final score, another third) and
-//! 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49 candidates). Sliding them took the mean over the
-//! calls of 100 frames from 33.0 k to 31.4 k.
+//! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates; at `s = 1` three adjacent candidates share
+//! their pixel reads and, two of them, their multiplies: [`Quantized::products`]); then per
+//! Lucas-Kanade step `n` shared-weight samples and ~10 flops each. Measured with callgrind on
+//! 7-Scenes QVGA templates (host x86_64, release build) before the column sums slid (commit
+//! 5a4ce29): about 30 k instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`,
+//! `s = 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps,
+//! typically 2-4 plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R =
+//! 3`: 49 candidates). Sliding them took the mean over the calls of 100 frames from 33.0 k to
+//! 31.4 k.
 //!
 //! # Memory
 //!
@@ -268,16 +270,9 @@ impl<const N: usize> Quantized<N> {
         self.root_var_n2 = libm::sqrtf(exact_f32(var_n2));
     }
 
-    /// ZNCC against the target's pixels of the `N x N` block whose top-left pixel is `(x0, y0)`
-    /// (inside the image: checked by the caller), whose sum and sum of squares are `block`, in
-    /// exact integer sums; `None` when either is flat.
-    fn zncc(
-        &self,
-        data: &[u8],
-        stride: usize,
-        (x0, y0): (usize, usize),
-        block: BlockSums,
-    ) -> Option<f32> {
+    /// `sum s q` over the `N x N` block of target pixels `s` whose top-left pixel is `(x0, y0)`
+    /// (inside the image: checked by the caller); `None` when a row leaves the buffer.
+    fn product(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<i32> {
         // |sum| <= 169 * 255 * 128: exact in i32.
         let mut st = 0i32;
         for (j, q_row) in self.values.iter().enumerate() {
@@ -287,6 +282,49 @@ impl<const N: usize> Quantized<N> {
                 st += i32::from(s) * i32::from(v);
             }
         }
+        Some(st)
+    }
+
+    /// [`Self::product`] of the [`ROW_BATCH`] (3) blocks whose top-left pixels are `(x0 + k,
+    /// y0)`, `k in 0..3`, or `None` when a row leaves the buffer or the template is too large
+    /// for the packed sums (`N > 11`). The same exact integer sums as three calls, in fewer
+    /// instructions: each pixel of a row is read once for all three blocks (`N + 2` pixels
+    /// instead of `3N`), and the sums of blocks 0 and 1 share one 64-bit multiply-accumulate
+    /// (`smlal` on the Cortex-M4): pixel `p` meets template column `p` of block 0 and `p - 1` of
+    /// block 1, so `s * (q[p] + q[p - 1] 2^23)` adds to both at once, block 0's sum in the low
+    /// 23 bits (its magnitude is at most `121 * 255 * 128 < 2^22` for `N <= 11`) and block 1's
+    /// above them. On the Cortex-M4 at `N = 9` a template row of the three blocks compiles to
+    /// about 87 instructions (the compiler still spills some values to the stack) against about
+    /// 114 for three single products; over 1000 frames of 7-Scenes (`cargo xtask budgets`) the
+    /// pipeline median went from 6.36 to 6.25 M instructions, every output bit the same.
+    fn products(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<[i32; 3]> {
+        if N * N * 255 * 128 >= 1 << (LANE_SHIFT - 1) {
+            return None;
+        }
+        let (mut packed, mut third) = (0i64, 0i32);
+        for (j, q_row) in self.values.iter().enumerate() {
+            let start = (y0 + j) * stride + x0;
+            let row = data.get(start..start + N + 2)?;
+            // Template column `i` of this row, 0 outside it (`p - 1` and `p - 2` wrap below 0).
+            let q = |i: usize| q_row.get(i).map_or(0, |&v| i32::from(v));
+            for (p, &s) in row.iter().enumerate() {
+                let s = i32::from(s);
+                // |q| <= 128: the shifted value is within +-2^30.
+                let pair = q(p) + (q(p.wrapping_sub(1)) << LANE_SHIFT);
+                packed += i64::from(s) * i64::from(pair);
+                third += s * q(p.wrapping_sub(2));
+            }
+        }
+        // Block 0's sum is the low `LANE_SHIFT` bits, sign-extended (truncating to i32 keeps
+        // them); block 1's is the rest, exactly.
+        let first = ((packed as i32) << (32 - LANE_SHIFT)) >> (32 - LANE_SHIFT);
+        let second = (packed - i64::from(first)) >> LANE_SHIFT;
+        Some([first, i32::try_from(second).ok()?, third])
+    }
+
+    /// ZNCC of the block whose product with the template is `st` ([`Self::product`]) and whose
+    /// sum and sum of squares are `block`, from exact integer sums; `None` when either is flat.
+    fn zncc(&self, st: i32, block: BlockSums) -> Option<f32> {
         let len = (N * N) as i64;
         let (s1, s2, st) = (i64::from(block.sum), i64::from(block.sum_sq), i64::from(st));
         let var_s = len * s2 - s1 * s1;
@@ -320,6 +358,13 @@ fn exact_f32(v: i64) -> f32 {
 fn wide_f32(v: i64) -> f32 {
     v as f32
 }
+
+/// Adjacent candidates whose products with the template [`search`] computes together
+/// ([`Quantized::products`]).
+const ROW_BATCH: usize = 3;
+
+/// Bit where the second block's sum starts in [`Quantized::products`]' packed sum.
+const LANE_SHIFT: u32 = 23;
 
 /// Widest search window of [`track_patch`], pixels: `2R + 2h + 1` at the largest `R` and `h`.
 const MAX_WINDOW: usize = 2 * MAX_TRACK_SEARCH_RADIUS + 2 * MAX_TRACK_HALF_SIZE + 1;
@@ -459,10 +504,15 @@ fn search<const N: usize, const S: usize>(
     q.fill(t);
     let width = 2 * r + N;
     let mut columns = ColumnSums::<N>::new();
-    let mut score = |ix: usize, iy: usize| {
+    // The score of the candidate at window position `(ix, iy)` whose product with the template
+    // is `st` (computed here when `None`).
+    let mut score = |ix: usize, iy: usize, st: Option<i32>| {
         columns
             .block(data, stride, (x0, y0 + iy), (ix, iy), width)
-            .and_then(|b| q.zncc(data, stride, (x0 + ix, y0 + iy), b))
+            .and_then(|b| {
+                let st = st.or_else(|| q.product(data, stride, (x0 + ix, y0 + iy)))?;
+                q.zncc(st, b)
+            })
             .unwrap_or(-1.0)
     };
     // Kept only for the ambiguity test: filling its 1,156 bytes on every fine track too cost
@@ -477,16 +527,32 @@ fn search<const N: usize, const S: usize>(
     let mut best = (r, r, f32::NEG_INFINITY);
     let mut best_k = (k_max, k_max);
     for ky in 0..csize {
-        for kx in 0..csize {
-            let (ix, iy) = (coarse(kx), coarse(ky));
-            let s = score(ix, iy);
-            if let Some(slot) = scores.as_mut().and_then(|g| g.get_mut(ky * csize + kx)) {
-                *slot = s;
+        let iy = coarse(ky);
+        let mut kx = 0;
+        while kx < csize {
+            // Adjacent candidates (step 1) share their pixels: their products come in batches
+            // of [`ROW_BATCH`] ([`Quantized::products`]). Scores, and so the order of ties, are
+            // those of single products.
+            let batch = if step == 1 && kx + ROW_BATCH <= csize {
+                q.products(data, stride, (x0 + coarse(kx), y0 + iy))
+                    .map(|p| p.map(Some))
+                    .unwrap_or([None; ROW_BATCH])
+            } else {
+                [None; ROW_BATCH]
+            };
+            let n = if batch[0].is_some() { ROW_BATCH } else { 1 };
+            for (k, st) in batch.into_iter().take(n).enumerate() {
+                let ix = coarse(kx + k);
+                let s = score(ix, iy, st);
+                if let Some(slot) = scores.as_mut().and_then(|g| g.get_mut(ky * csize + kx + k)) {
+                    *slot = s;
+                }
+                if s > best.2 {
+                    best = (ix, iy, s);
+                    best_k = (kx + k, ky);
+                }
             }
-            if s > best.2 {
-                best = (ix, iy, s);
-                best_k = (kx, ky);
-            }
+            kx += n;
         }
     }
     if let (Some(margin), Some(scores)) = (params.min_peak_margin, &scores) {
@@ -502,7 +568,7 @@ fn search<const N: usize, const S: usize>(
         let reach_fine = step - 1;
         for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
             for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
-                let s = score(ix, iy);
+                let s = score(ix, iy, None);
                 if s > best.2 {
                     best = (ix, iy, s);
                 }
@@ -813,6 +879,44 @@ pub fn track_patch(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The batched, packed products equal one product per block, at the extremes of the
+    /// template and pixel ranges too; too large a template is left to the single products.
+    #[test]
+    fn batched_products_equal_single_ones() {
+        fn check<const N: usize>(img: &[u8], w: usize, fill: impl Fn(usize) -> i16) {
+            let mut q = Quantized::<N>::EMPTY;
+            for (k, v) in q.values.as_flattened_mut().iter_mut().enumerate() {
+                *v = fill(k);
+            }
+            for (x0, y0) in [(0usize, 0usize), (5, 3), (w - N - 2, 40 - N)] {
+                let batch = q.products(img, w, (x0, y0));
+                let single: [Option<i32>; 3] =
+                    core::array::from_fn(|k| q.product(img, w, (x0 + k, y0)));
+                if N <= 11 {
+                    assert_eq!(batch.map(|b| b.map(Some)), Some(single), "{N} at {x0}, {y0}");
+                } else {
+                    assert_eq!(batch, None);
+                }
+            }
+        }
+        let w = 40usize;
+        let mut state = 777u32;
+        let mut noise = [0u8; 40 * 40];
+        for p in noise.iter_mut() {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *p = (state >> 24) as u8;
+        }
+        let white = [255u8; 40 * 40];
+        for img in [&noise, &white] {
+            check::<9>(img, w, |k| (k as i16 * 37) % 256 - 128);
+            check::<9>(img, w, |_| -128);
+            check::<9>(img, w, |_| 127);
+            check::<11>(img, w, |k| if k % 2 == 0 { -128 } else { 127 });
+            check::<11>(img, w, |_| -128);
+            check::<13>(img, w, |_| 1);
+        }
+    }
 
     /// Column sums slid from any earlier candidate row equal the sums computed from scratch.
     #[test]
