@@ -42,9 +42,9 @@
 //! 7-Scenes QVGA templates (host x86_64, release build) before the column sums slid (commit
 //! 5a4ce29): about 30 k instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`,
 //! `s = 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps,
-//! typically 2-4 plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R =
-//! 3`: 49 candidates). Sliding them took the mean over the calls of 100 frames from 33.0 k to
-//! 31.4 k.
+//! typically 2-4 plus the final score, another third) and 58 k at [`TrackParams::GUIDE`]
+//! (`R = 3`: 49 candidates). Sliding them took the mean over the calls of 100 frames from
+//! 33.0 k to 31.4 k.
 //!
 //! # Memory
 //!
@@ -294,9 +294,9 @@ impl<const N: usize> Quantized<N> {
     /// block 1, so `s * (q[p] + q[p - 1] 2^23)` adds to both at once, block 0's sum in the low
     /// 23 bits (its magnitude is at most `121 * 255 * 128 < 2^22` for `N <= 11`) and block 1's
     /// above them. On the Cortex-M4 at `N = 9` a template row of the three blocks compiles to
-    /// about 87 instructions (the compiler still spills some values to the stack) against about
+    /// about 88 instructions (the compiler still spills some values to the stack) against about
     /// 114 for three single products; over 1000 frames of 7-Scenes (`cargo xtask budgets`) the
-    /// pipeline median went from 6.36 to 6.25 M instructions, every output bit the same.
+    /// pipeline median went from 6.36 to 6.23 M instructions, every output bit the same.
     fn products(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<[i32; 3]> {
         if N * N * 255 * 128 >= 1 << (LANE_SHIFT - 1) {
             return None;
@@ -533,17 +533,13 @@ fn search<const N: usize, const S: usize>(
             // Adjacent candidates (step 1) share their pixels: their products come in batches
             // of [`ROW_BATCH`] ([`Quantized::products`]). Scores, and so the order of ties, are
             // those of single products.
-            let batch = if step == 1 && kx + ROW_BATCH <= csize {
-                q.products(data, stride, (x0 + coarse(kx), y0 + iy))
-                    .map(|p| p.map(Some))
-                    .unwrap_or([None; ROW_BATCH])
-            } else {
-                [None; ROW_BATCH]
-            };
-            let n = if batch[0].is_some() { ROW_BATCH } else { 1 };
-            for (k, st) in batch.into_iter().take(n).enumerate() {
+            let batch = (step == 1 && kx + ROW_BATCH <= csize)
+                .then(|| q.products(data, stride, (x0 + coarse(kx), y0 + iy)))
+                .flatten();
+            let n = batch.map_or(1, |_| ROW_BATCH);
+            for k in 0..n {
                 let ix = coarse(kx + k);
-                let s = score(ix, iy, st);
+                let s = score(ix, iy, batch.and_then(|b| b.get(k).copied()));
                 if let Some(slot) = scores.as_mut().and_then(|g| g.get_mut(ky * csize + kx + k)) {
                     *slot = s;
                 }
@@ -880,6 +876,17 @@ pub fn track_patch(
 mod tests {
     use super::*;
 
+    /// A 40 x 40 image of pseudo-random pixels from `seed` (a linear congruential generator).
+    fn noise_image(seed: u32) -> [u8; 40 * 40] {
+        let mut state = seed;
+        let mut img = [0u8; 40 * 40];
+        for p in img.iter_mut() {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *p = (state >> 24) as u8;
+        }
+        img
+    }
+
     /// The batched, packed products equal one product per block, at the extremes of the
     /// template and pixel ranges too; too large a template is left to the single products.
     #[test]
@@ -901,12 +908,7 @@ mod tests {
             }
         }
         let w = 40usize;
-        let mut state = 777u32;
-        let mut noise = [0u8; 40 * 40];
-        for p in noise.iter_mut() {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            *p = (state >> 24) as u8;
-        }
+        let noise = noise_image(777);
         let white = [255u8; 40 * 40];
         for img in [&noise, &white] {
             check::<9>(img, w, |k| (k as i16 * 37) % 256 - 128);
@@ -923,12 +925,7 @@ mod tests {
     fn slid_column_sums_equal_fresh_ones() {
         const N: usize = 9;
         let (w, h) = (40usize, 40usize);
-        let mut img = [0u8; 40 * 40];
-        let mut state = 12345u32;
-        for p in img.iter_mut() {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            *p = (state >> 24) as u8;
-        }
+        let img = noise_image(12345);
         let (x0, y0, width) = (3usize, 2usize, 2 * 8 + N);
         // Row visits as the coarse (steps 1, 2, 3, 8) and fine passes make them, and jumps back;
         // every visited block lies inside the image.
