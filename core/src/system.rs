@@ -21,14 +21,17 @@ use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams};
 /// Back-end work units per frame in deterministic replay and on the board: at about 400 host
 /// instructions a unit (see [`crate::optim`]), 2,500 units keep every back-end step under 2 M
 /// instructions on the Cortex-M4 (median 1.11 M, max 1.93 M over 1000 frames of 7-Scenes,
-/// `cargo xtask budgets`), half of what 5,000 units took. A local BA then takes twice as many
+/// `cargo xtask budgets`; 0.85 M and 1.68 M since the BA's observation terms are inlined), half
+/// of what 5,000 units took. A local BA then takes twice as many
 /// frames (16 finish on 7-Scenes instead of 29), and the accuracy is no worse: 7-Scenes SLAM
 /// over `cargo xtask spread` 0.0338 m against 0.0343 m, demo SLAM over 16 start frames 3.08 mm
 /// against 3.07 mm; at 1,250 units 7-Scenes loses (0.0354 m, SLAM better than odometry in 9 of
 /// 12 runs instead of 12). Measured again with the prediction tried before the guides and the
 /// batched search products: at 2,000 units the pipeline median is 6.03 M (still over issue 6's
 /// 6 M) and 7-Scenes SLAM loses its lead (0.0357 m, 9 of 12; default run 0.0424 m against
-/// odometry's 0.0369 m). The measurements are in memory-budget.md.
+/// odometry's 0.0369 m). Since the template warp reads through a window and the observation
+/// terms are inlined, the pipeline median meets the 6 M at 2,500 units (5.68 M). The
+/// measurements are in memory-budget.md.
 pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 
 /// SLAM at the reference board's QVGA profile (320 x 240).

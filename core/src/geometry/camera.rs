@@ -293,7 +293,9 @@ impl PinholeCamera {
 
     /// [`Self::project_world_with_jacobians`] without `d(uv)/d(p_w)`, for a solver that moves
     /// only the pose (tracking): the same values, bit for bit, without the rotation matrix and the
-    /// product that only a point update needs.
+    /// product that only a point update needs. Always inlined: the pose solver calls it per
+    /// correspondence and iteration, and a call returns the projection through the stack.
+    #[inline(always)]
     pub fn project_world_with_pose_jacobian(
         &self,
         t_cw: &Pose,

@@ -116,6 +116,10 @@ struct Problem<'a> {
 
 impl Problem<'_> {
     /// Residuals of `c` at `t_cw`; `None` when `p_w` does not project (behind the camera).
+    /// Always inlined, with the projection it calls, for the same reason as the BA's
+    /// observation terms (`optim::model`): returned from calls, the structures were copied
+    /// through the stack.
+    #[inline(always)]
     fn terms(&self, t_cw: &Pose, c: &Correspondence) -> Option<Terms> {
         let proj = self.camera.project_world_with_pose_jacobian(t_cw, &c.p_w)?;
         let inv_sigma = 1.0 / self.params.pixel_sigma_px;
