@@ -46,7 +46,8 @@
 //! (`R = 3`: 49 candidates). Sliding them took the mean over the calls of 100 frames from
 //! 33.0 k to 31.4 k. The template's samples read a copy of the pixels they need (one word-wise
 //! row copy per pixel row of a 16 x 16 template) instead of checking every read: on the
-//! Cortex-M4 a sample went from about 54 to about 36 instructions (`profile-firmware`).
+//! Cortex-M4 a sample went from about 54 to about 38 instructions, 43 with its share of the copy
+//! (`profile-firmware`).
 //!
 //! # Memory
 //!
