@@ -30,7 +30,7 @@ use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams};
 /// batched search products: at 2,000 units the pipeline median is 6.03 M (still over issue 6's
 /// 6 M) and 7-Scenes SLAM loses its lead (0.0357 m, 9 of 12; default run 0.0424 m against
 /// odometry's 0.0369 m). Since the template warp reads through a window and the observation
-/// terms are inlined, the pipeline median meets the 6 M at 2,500 units (5.68 M). The
+/// terms are inlined, the pipeline median meets the 6 M at 2,500 units (5.70 M). The
 /// measurements are in memory-budget.md.
 pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 

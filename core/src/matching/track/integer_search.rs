@@ -1,0 +1,427 @@
+//! The integer search of step 2 of the [module documentation](super): the template rounded to
+//! integers, candidates' block sums from shared column sums, their ZNCC from exact integer sums,
+//! and the ambiguity test over the coarse scores.
+
+use super::{Template, TrackParams};
+use crate::image::GrayView;
+use crate::matching::MatchError;
+use crate::matching::track::{
+    MAX_TRACK_COARSE_STEPS, MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS,
+};
+
+/// Side of the largest coarse score grid.
+const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_COARSE_STEPS + 1;
+
+/// The template grid rounded to integers for the search.
+struct Quantized<const N: usize> {
+    /// Rounded values (gray level minus 128, so in -128..=127).
+    values: [[i16; N]; N],
+    /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
+    sum: i64,
+    var_n2: i64,
+    /// `sqrt(var_n2)`, the template's factor of every candidate's ZNCC denominator.
+    root_var_n2: f32,
+}
+
+impl<const N: usize> Quantized<N> {
+    /// All zero, to be filled by [`Self::fill`].
+    const EMPTY: Self = Self { values: [[0; N]; N], sum: 0, var_n2: 0, root_var_n2: 0.0 };
+
+    /// Fills `self` with the rounded grid of `t` and its sums.
+    fn fill<const S: usize>(&mut self, t: &Template<N, S>) {
+        let (mut qs, mut qss) = (0i64, 0i64);
+        for (q_row, v_row) in self.values.iter_mut().zip(&t.values[1..]) {
+            for (q, &v) in q_row.iter_mut().zip(&v_row[1..]) {
+                // Values are in -128..128, so `v + 128.5` is positive and truncation rounds it
+                // half up: the same bits on every target, without a call to `roundf`.
+                let r = ((v + 128.5) as i32 - 128) as i16;
+                *q = r;
+                qs += i64::from(r);
+                qss += i64::from(r) * i64::from(r);
+            }
+        }
+        // At most 169 * 169 * 128^2: far inside i64.
+        let var_n2 = (N * N) as i64 * qss - qs * qs;
+        (self.sum, self.var_n2) = (qs, var_n2);
+        self.root_var_n2 = libm::sqrtf(exact_f32(var_n2));
+    }
+
+    /// `sum s q` over the `N x N` block of target pixels `s` whose top-left pixel is `(x0, y0)`
+    /// (inside the image: checked by the caller); `None` when a row leaves the buffer.
+    fn product(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<i32> {
+        // |sum| <= 169 * 255 * 128: exact in i32.
+        let mut st = 0i32;
+        for (j, q_row) in self.values.iter().enumerate() {
+            let start = (y0 + j) * stride + x0;
+            let row: &[u8; N] = data.get(start..start + N)?.try_into().ok()?;
+            for (&s, &v) in row.iter().zip(q_row) {
+                st += i32::from(s) * i32::from(v);
+            }
+        }
+        Some(st)
+    }
+
+    /// [`Self::product`] of the [`ROW_BATCH`] (3) blocks whose top-left pixels are `(x0 + k,
+    /// y0)`, `k in 0..3`, or `None` when a row leaves the buffer or the template is too large
+    /// for the packed sums (`N > 11`). The same exact integer sums as three calls, in fewer
+    /// instructions: each pixel of a row is read once for all three blocks (`N + 2` pixels
+    /// instead of `3N`), and the sums of blocks 0 and 1 share one 64-bit multiply-accumulate
+    /// (`smlal` on the Cortex-M4): pixel `p` meets template column `p` of block 0 and `p - 1` of
+    /// block 1, so `s * (q[p] + q[p - 1] 2^23)` adds to both at once, block 0's sum in the low
+    /// 23 bits (its magnitude is at most `121 * 255 * 128 < 2^22` for `N <= 11`) and block 1's
+    /// above them. On the Cortex-M4 at `N = 9` a template row of the three blocks compiles to
+    /// about 88 instructions (the compiler still spills some values to the stack) against about
+    /// 114 for three single products; over 1000 frames of 7-Scenes (`cargo xtask budgets`) the
+    /// pipeline median went from 6.36 to 6.23 M instructions, every output bit the same.
+    fn products(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<[i32; 3]> {
+        if N * N * 255 * 128 >= 1 << (LANE_SHIFT - 1) {
+            return None;
+        }
+        let (mut packed, mut third) = (0i64, 0i32);
+        for (j, q_row) in self.values.iter().enumerate() {
+            let start = (y0 + j) * stride + x0;
+            let row = data.get(start..start + N + 2)?;
+            // Template column `i` of this row, 0 outside it (`p - 1` and `p - 2` wrap below 0).
+            let q = |i: usize| q_row.get(i).map_or(0, |&v| i32::from(v));
+            for (p, &s) in row.iter().enumerate() {
+                let s = i32::from(s);
+                // |q| <= 128: the shifted value is within +-2^30.
+                let pair = q(p) + (q(p.wrapping_sub(1)) << LANE_SHIFT);
+                packed += i64::from(s) * i64::from(pair);
+                third += s * q(p.wrapping_sub(2));
+            }
+        }
+        // Block 0's sum is the low `LANE_SHIFT` bits, sign-extended (truncating to i32 keeps
+        // them); block 1's is the rest, exactly.
+        let first = ((packed as i32) << (32 - LANE_SHIFT)) >> (32 - LANE_SHIFT);
+        let second = (packed - i64::from(first)) >> LANE_SHIFT;
+        Some([first, i32::try_from(second).ok()?, third])
+    }
+
+    /// ZNCC of the block whose product with the template is `st` ([`Self::product`]) and whose
+    /// sum and sum of squares are `block`, from exact integer sums; `None` when either is flat.
+    fn zncc(&self, st: i32, block: BlockSums) -> Option<f32> {
+        let len = (N * N) as i64;
+        let (s1, s2, st) = (i64::from(block.sum), i64::from(block.sum_sq), i64::from(st));
+        let var_s = len * s2 - s1 * s1;
+        let cov = len * st - s1 * self.sum;
+        // Less than ~0.05 gray levels of spread carries no correlation.
+        if var_s * 1000 <= len * len || self.var_n2 <= 0 {
+            return None;
+        }
+        // Both factors are below 1.87e9 (see `exact_f32`): their f32 roots lose nothing that
+        // matters at ZNCC scale.
+        let denom = libm::sqrtf(exact_f32(var_s)) * self.root_var_n2;
+        Some((exact_f32(cov) / denom).clamp(-1.0, 1.0))
+    }
+}
+
+/// `v as f32`, through `i32` when `v` fits (every sum of [`Quantized::zncc`] does: the largest,
+/// `n sum s^2` and `|n sum s q|` at 13 x 13, are below 1.87e9): the same value (the nearest f32 to
+/// the integer either way), but the Cortex-M4 converts an `i32` in one instruction and an `i64`
+/// in a library call.
+fn exact_f32(v: i64) -> f32 {
+    match i32::try_from(v) {
+        Ok(v) => v as f32,
+        Err(_) => wide_f32(v),
+    }
+}
+
+/// `v as f32` out of line: written inline, the compiler converted both ways and kept one, so the
+/// library call ran for every ZNCC (146 k instructions a frame on the Cortex-M4, 7-Scenes).
+#[cold]
+#[inline(never)]
+fn wide_f32(v: i64) -> f32 {
+    v as f32
+}
+
+/// Adjacent candidates whose products with the template [`search`] computes together
+/// ([`Quantized::products`]).
+const ROW_BATCH: usize = 3;
+
+/// Bit where the second block's sum starts in [`Quantized::products`]' packed sum.
+const LANE_SHIFT: u32 = 23;
+
+/// Widest search window of [`track_patch`](super::track_patch), pixels: `2R + 2h + 1` at the
+/// largest `R` and `h`.
+const MAX_WINDOW: usize = 2 * MAX_TRACK_SEARCH_RADIUS + 2 * MAX_TRACK_HALF_SIZE + 1;
+
+/// The sum and the sum of squares of a block of target pixels (exact: at most 169 * 255^2).
+#[derive(Debug, Clone, Copy)]
+struct BlockSums {
+    sum: i32,
+    sum_sq: i32,
+}
+
+/// The target's column sums over the `N` rows of one row of candidates: for every window column,
+/// the sum and the sum of squares of the `N` pixels below it. A candidate's block sums are then
+/// `N` column sums instead of `N^2` pixels, so its ZNCC reads the pixels only for the product with
+/// the template.
+struct ColumnSums<const N: usize> {
+    sum: [i32; MAX_WINDOW],
+    sum_sq: [i32; MAX_WINDOW],
+    /// Window row of the candidates these sums are for; `None` before the first row or when a
+    /// row left the buffer (impossible after the caller's check; its candidates then score -1).
+    row: Option<usize>,
+}
+
+impl<const N: usize> ColumnSums<N> {
+    fn new() -> Self {
+        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None }
+    }
+
+    /// The block sums of the candidate at window column `ix` of the candidate row whose top
+    /// pixel row is `y` (window row `iy`); the window starts at column `x0` and is `width`
+    /// columns wide. Updates the column sums when the candidate row changes: by the rows that
+    /// left and entered the `N` rows when it moved down by less than `N` (the coarse pass visits
+    /// its rows top to bottom), otherwise from scratch. All sums are exact integers, so both ways
+    /// give the same values.
+    fn block(
+        &mut self,
+        data: &[u8],
+        stride: usize,
+        (x0, y): (usize, usize),
+        (ix, iy): (usize, usize),
+        width: usize,
+    ) -> Option<BlockSums> {
+        if self.row != Some(iy) {
+            let previous = self.row.take();
+            let width = width.min(MAX_WINDOW);
+            let (sum, sum_sq) = (&mut self.sum[..width], &mut self.sum_sq[..width]);
+            let pixels = |j: usize| {
+                let start = j * stride + x0;
+                data.get(start..start + width)
+            };
+            match previous {
+                Some(p) if p < iy && iy - p < N => {
+                    // Window row `r` is image row `y - iy + r`.
+                    let top = y - iy;
+                    for r in p..iy {
+                        let (gone, new) = (pixels(top + r)?, pixels(top + r + N)?);
+                        let columns =
+                            sum.iter_mut().zip(sum_sq.iter_mut()).zip(gone.iter().zip(new));
+                        for ((a, b), (&g, &n)) in columns {
+                            let (g, n) = (i32::from(g), i32::from(n));
+                            *a += n - g;
+                            *b += n * n - g * g;
+                        }
+                    }
+                }
+                _ => {
+                    sum.fill(0);
+                    sum_sq.fill(0);
+                    for j in 0..N {
+                        let row = pixels(y + j)?;
+                        for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(row) {
+                            let s = i32::from(s);
+                            *a += s;
+                            *b += s * s;
+                        }
+                    }
+                }
+            }
+            self.row = Some(iy);
+        }
+        let sum = self.sum.get(ix..ix + N)?.iter().sum();
+        let sum_sq = self.sum_sq.get(ix..ix + N)?.iter().sum();
+        Some(BlockSums { sum, sum_sq })
+    }
+}
+
+/// The integer search of step 2 of the module documentation: the best pixel (integer
+/// coordinates, within `R` of the rounded prediction on each axis) and its ZNCC.
+pub(super) fn search<const N: usize, const S: usize>(
+    t: &Template<N, S>,
+    target: &GrayView<'_>,
+    predicted: (f32, f32),
+    params: &TrackParams,
+) -> Result<((usize, usize), f32), MatchError> {
+    let (h, r) = (N / 2, params.search_radius);
+    let (w, img_h) = target.size();
+    let (px, py) = (libm::roundf(predicted.0), libm::roundf(predicted.1));
+    let reach = (r + h) as f32;
+    // NaN fails the comparisons; the casts below only see values inside the image.
+    let inside = px - reach >= 0.0
+        && py - reach >= 0.0
+        && px + reach <= (w - 1) as f32
+        && py + reach <= (img_h - 1) as f32;
+    if !inside {
+        return Err(MatchError::NoCandidate);
+    }
+    // Top-left pixel of the candidate at score index (0, 0).
+    let (x0, y0) = ((px - reach) as usize, (py - reach) as usize);
+    let (data, stride) = (target.data(), target.stride());
+    let step = params.search_step;
+    let mut q = Quantized::EMPTY;
+    q.fill(t);
+    let width = 2 * r + N;
+    let mut columns = ColumnSums::<N>::new();
+    // The score of the candidate at window position `(ix, iy)` whose product with the template
+    // is `st` (computed here when `None`).
+    let mut score = |ix: usize, iy: usize, st: Option<i32>| {
+        columns
+            .block(data, stride, (x0, y0 + iy), (ix, iy), width)
+            .and_then(|b| {
+                let st = st.or_else(|| q.product(data, stride, (x0 + ix, y0 + iy)))?;
+                q.zncc(st, b)
+            })
+            .unwrap_or(-1.0)
+    };
+    // Kept only for the ambiguity test: filling its 1,156 bytes on every fine track too cost
+    // about 0.02 M instructions a frame on the Cortex-M4.
+    let mut scores =
+        params.min_peak_margin.map(|_| [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE]);
+    let k_max = r / step;
+    let csize = 2 * k_max + 1;
+    // Coarse pass on offsets `k * step`, `k in -k_max..=k_max` (the prediction itself included);
+    // scores are kept on the coarse grid, index `ky * csize + kx`.
+    let coarse = |k: usize| r + k * step - k_max * step;
+    let mut best = (r, r, f32::NEG_INFINITY);
+    let mut best_k = (k_max, k_max);
+    for ky in 0..csize {
+        let iy = coarse(ky);
+        let mut kx = 0;
+        while kx < csize {
+            // Adjacent candidates (step 1) share their pixels: their products come in batches
+            // of [`ROW_BATCH`] ([`Quantized::products`]). Scores, and so the order of ties, are
+            // those of single products.
+            let batch = (step == 1 && kx + ROW_BATCH <= csize)
+                .then(|| q.products(data, stride, (x0 + coarse(kx), y0 + iy)))
+                .flatten();
+            let n = batch.map_or(1, |_| ROW_BATCH);
+            for k in 0..n {
+                let ix = coarse(kx + k);
+                let s = score(ix, iy, batch.and_then(|b| b.get(k).copied()));
+                if let Some(slot) = scores.as_mut().and_then(|g| g.get_mut(ky * csize + kx + k)) {
+                    *slot = s;
+                }
+                if s > best.2 {
+                    best = (ix, iy, s);
+                    best_k = (kx + k, ky);
+                }
+            }
+            kx += n;
+        }
+    }
+    if let (Some(margin), Some(scores)) = (params.min_peak_margin, &scores) {
+        let second = second_peak(scores, csize, best_k);
+        if second > best.2 - margin {
+            return Err(MatchError::Ambiguous { best: best.2, second });
+        }
+    }
+    if step > 1 {
+        // Fine pass: every integer offset within `step - 1` of the coarse best.
+        let (cx, cy) = (best.0, best.1);
+        best.2 = f32::NEG_INFINITY;
+        let reach_fine = step - 1;
+        for iy in cy.saturating_sub(reach_fine)..=(cy + reach_fine).min(2 * r) {
+            for ix in cx.saturating_sub(reach_fine)..=(cx + reach_fine).min(2 * r) {
+                let s = score(ix, iy, None);
+                if s > best.2 {
+                    best = (ix, iy, s);
+                }
+            }
+        }
+    }
+    if best.2 <= -1.0 {
+        return Err(MatchError::NoCandidate);
+    }
+    Ok(((x0 + h + best.0, y0 + h + best.1), best.2))
+}
+
+/// The best coarse local maximum (over its 8 coarse neighbours) more than one coarse step from
+/// `best` (coarse grid indices), over the `csize` x `csize` coarse grid `scores`; `-1` when there
+/// is none.
+fn second_peak(scores: &[f32], csize: usize, best: (usize, usize)) -> f32 {
+    let n = csize as isize;
+    let at = |kx: isize, ky: isize| -> f32 {
+        if kx < 0 || ky < 0 || kx >= n || ky >= n {
+            return f32::NEG_INFINITY;
+        }
+        scores.get((ky * n + kx) as usize).copied().unwrap_or(f32::NEG_INFINITY)
+    };
+    let mut second = -1.0f32;
+    for ky in 0..n {
+        for kx in 0..n {
+            if (kx as usize).abs_diff(best.0) <= 1 && (ky as usize).abs_diff(best.1) <= 1 {
+                continue;
+            }
+            let s = at(kx, ky);
+            // Only a candidate above the best so far is checked for being a peak (the check reads
+            // 8 neighbours; most candidates fail the cheap comparison first).
+            if s <= second || s.is_nan() {
+                continue;
+            }
+            let is_peak = (-1..=1)
+                .all(|dy| (-1..=1).all(|dx| (dx == 0 && dy == 0) || at(kx + dx, ky + dy) <= s));
+            if is_peak {
+                second = s;
+            }
+        }
+    }
+    second
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matching::track::test_images::noise_image;
+
+    /// The batched, packed products equal one product per block, at the extremes of the
+    /// template and pixel ranges too; too large a template is left to the single products.
+    #[test]
+    fn batched_products_equal_single_ones() {
+        fn check<const N: usize>(img: &[u8], w: usize, fill: impl Fn(usize) -> i16) {
+            let mut q = Quantized::<N>::EMPTY;
+            for (k, v) in q.values.as_flattened_mut().iter_mut().enumerate() {
+                *v = fill(k);
+            }
+            for (x0, y0) in [(0usize, 0usize), (5, 3), (w - N - 2, 40 - N)] {
+                let batch = q.products(img, w, (x0, y0));
+                let single: [Option<i32>; 3] =
+                    core::array::from_fn(|k| q.product(img, w, (x0 + k, y0)));
+                if N <= 11 {
+                    assert_eq!(batch.map(|b| b.map(Some)), Some(single), "{N} at {x0}, {y0}");
+                } else {
+                    assert_eq!(batch, None);
+                }
+            }
+        }
+        let w = 40usize;
+        let noise = noise_image(777);
+        let white = [255u8; 40 * 40];
+        for img in [&noise, &white] {
+            check::<9>(img, w, |k| (k as i16 * 37) % 256 - 128);
+            check::<9>(img, w, |_| -128);
+            check::<9>(img, w, |_| 127);
+            check::<11>(img, w, |k| if k % 2 == 0 { -128 } else { 127 });
+            check::<11>(img, w, |_| -128);
+            check::<13>(img, w, |_| 1);
+        }
+    }
+
+    /// Column sums slid from any earlier candidate row equal the sums computed from scratch.
+    #[test]
+    fn slid_column_sums_equal_fresh_ones() {
+        const N: usize = 9;
+        let (w, h) = (40usize, 40usize);
+        let img = noise_image(12345);
+        let (x0, y0, width) = (3usize, 2usize, 2 * 8 + N);
+        // Row visits as the coarse (steps 1, 2, 3, 8) and fine passes make them, and jumps back;
+        // every visited block lies inside the image.
+        let visits = [0usize, 1, 2, 4, 7, 15, 16, 3, 3, 12, 11, 20];
+        assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
+        let mut slid = ColumnSums::<N>::new();
+        for &iy in &visits {
+            let mut fresh = ColumnSums::<N>::new();
+            for ix in [0usize, 5, width - N] {
+                let a =
+                    slid.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
+                let b =
+                    fresh.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
+                assert!(a.is_some(), "row {iy} column {ix} inside the image");
+                assert_eq!(a, b, "row {iy} column {ix}");
+            }
+        }
+    }
+}
