@@ -139,6 +139,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 }
             }
         }
+        let now = self.frame_index;
+        let mut local = self.local.insertions();
         let mut created = 0;
         for i in 0..self.features.len() {
             let Some(&f) = self.features.get(i) else { break };
@@ -153,7 +155,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 let (dx, dy) = (u - f.x, v - f.y);
                 dx * dx + dy * dy < min_d2
             });
-            if near || !self.make_room_in_local_map() {
+            if near || !local.make_room(now) {
                 continue;
             }
             let p_w = t_wc * cam.back_project(f.x, f.y, z);
@@ -163,7 +165,6 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     // The landmark arena is full: first drop the landmarks no keyframe observes
                     // and no one tracks, then retire the oldest keyframe (never this one) so its
                     // landmarks become such orphans: the map keeps its newest part.
-                    let local = &self.local;
                     if map.remove_orphans(|id| local.contains(id)) == 0
                         && map.oldest_keyframe() != Some(kf)
                     {
@@ -175,8 +176,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     }
                 }
             };
-            let tracked =
-                TrackedLandmark::new(id, &frame.gray, (f.x, f.y), z, t_wc, self.frame_index);
+            let tracked = TrackedLandmark::new(id, &frame.gray, (f.x, f.y), z, t_wc, now);
             let obs = Observation::new(id, (f.x, f.y), Some(z));
             let (Some(mut t), Some(obs)) = (tracked, obs) else {
                 let _ = map.remove_landmark(id);
@@ -190,36 +190,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             if let Some(lm) = map.landmark_mut(id) {
                 lm.descriptor = Descriptor::of(&frame.gray, f.x, f.y);
             }
-            if !self.local.push(t) {
+            if !local.push(t) {
                 break;
             }
             created += 1;
         }
         created
-    }
-
-    /// Frees one local-map slot if none is free, evicting the landmark not found for longest
-    /// (not one found in this frame); `false` when every landmark was found in this frame.
-    pub(super) fn make_room_in_local_map(&mut self) -> bool {
-        if !self.local.is_full() {
-            return true;
-        }
-        let now = self.frame_index;
-        let victim = self
-            .local
-            .items()
-            .iter()
-            .enumerate()
-            .filter(|(_, t)| t.last_found_frame != now)
-            .max_by_key(|(i, t)| (now.wrapping_sub(t.last_found_frame), core::cmp::Reverse(*i)))
-            .map(|(i, _)| i);
-        let Some(victim) = victim else { return false };
-        let mut i = 0;
-        self.local.retain(|_| {
-            i += 1;
-            i - 1 != victim
-        });
-        true
     }
 }
 

@@ -118,20 +118,20 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             }
         }
         let t_wc = t_cw.inverse();
+        let now = self.frame_index;
+        let mut local = self.local.insertions();
         let mut n = 0;
         for &(id, i, zf) in &found {
             let Some(&f) = self.features.get(i) else { continue };
             let Some(obs) = Observation::new(id, (f.x, f.y), Some(zf)) else { continue };
-            if !self.make_room_in_local_map() || map.add_observation(kf, obs).is_err() {
+            if !local.make_room(now) || map.add_observation(kf, obs).is_err() {
                 break;
             }
             insert(used, i);
-            let Some(t) =
-                TrackedLandmark::new(id, &frame.gray, (f.x, f.y), zf, &t_wc, self.frame_index)
-            else {
+            let Some(t) = TrackedLandmark::new(id, &frame.gray, (f.x, f.y), zf, &t_wc, now) else {
                 continue;
             };
-            if !self.local.push(t) {
+            if !local.push(t) {
                 break;
             }
             n += 1;

@@ -62,7 +62,9 @@ pub use frontend::{
     FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats, GuideStage,
     QvgaFrontend, VgaFrontend,
 };
-pub use local_map::{BoardLocalMap, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine};
+pub use local_map::{
+    BoardLocalMap, Insertions, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine,
+};
 pub use mask::InlierMask;
 pub use motion::{MotionModel, predict_constant_velocity};
 pub use params::PoseParams;
