@@ -21,7 +21,7 @@
 //! Gauss-Newton iterations in all and 6-7.5 M host instructions an estimate, paid only when the
 //! guides fail, and then the largest part of such a frame after the final stages it retries.
 
-use nalgebra::{Matrix5, Point3, UnitQuaternion, Vector3, Vector5};
+use nalgebra::{Matrix5, Point3, Rotation3, UnitQuaternion, Vector3, Vector5};
 
 use crate::geometry::{PinholeCamera, hat, so3_exp};
 use crate::image::GrayView;
@@ -267,72 +267,157 @@ pub fn estimate_rotation(
     (rms < MAX_RMS_GRAY).then_some(r)
 }
 
+/// One pixel's part of the normal equations: the residual's Jacobian with respect to the
+/// rotation (`dw`; the gain's is `-ip`, the offset's `-1`), the previous image's gray value `ip`,
+/// the Huber weight and the residual.
+#[derive(Debug, Clone, Copy, Default)]
+struct Term {
+    dw: [f32; 3],
+    ip: f32,
+    wgt: f32,
+    res: f32,
+}
+
+impl Term {
+    /// The Jacobian of the residual with respect to `(w, a, b)`.
+    #[inline(always)]
+    fn j(&self) -> [f32; 5] {
+        [self.dw[0], self.dw[1], self.dw[2], -self.ip, -1.0]
+    }
+}
+
+/// The entries `(i, l)` of `H`'s upper triangle (`l >= i`, row by row: the order of the sums),
+/// in the three groups [`Sums::add_row`] sums in one pass each.
+const H_ROW_0: [(usize, usize); 5] = [(0, 0), (0, 1), (0, 2), (0, 3), (0, 4)];
+const H_ROW_1: [(usize, usize); 4] = [(1, 1), (1, 2), (1, 3), (1, 4)];
+const H_ROWS_2_TO_4: [(usize, usize); 6] = [(2, 2), (2, 3), (2, 4), (3, 3), (3, 4), (4, 4)];
+
+/// Adds `j_i j_l w` of every term to the sum of entry `(i, l)`, term by term.
+#[inline(always)]
+fn add_products<const N: usize>(sums: &mut [f32; N], entries: &[(usize, usize); N], row: &[Term]) {
+    // A local copy, so that the sums live in registers for the whole pass.
+    let mut s = *sums;
+    for t in row {
+        let j = t.j();
+        for (e, &(i, l)) in s.iter_mut().zip(entries) {
+            *e += j[i] * j[l] * t.wgt;
+        }
+    }
+    *sums = s;
+}
+
+/// The sums of the Gauss-Newton normal equations: `H`'s upper triangle in three groups (see
+/// [`H_ROW_0`]), the gradient `g` and the sum of squared residuals.
+#[derive(Default)]
+struct Sums {
+    h0: [f32; 5],
+    h1: [f32; 4],
+    h2: [f32; 6],
+    g: [f32; 5],
+    sq: f32,
+}
+
+impl Sums {
+    /// Adds one image row's terms, in pixel order. Each sum gets the same products in the same
+    /// order as adding the terms pixel by pixel, every sum at once, gives it (so the same bits:
+    /// a unit test compares the two), but the sums are taken a group at a time, one pass over
+    /// the row each, after the row's terms are computed: on the Cortex-M4F the 21 sums and a
+    /// pixel's sampling do not fit its 32 float registers together, and summed with the
+    /// sampling, pixel by pixel, they were spilled to the stack on every pixel.
+    fn add_row(&mut self, row: &[Term]) {
+        add_products(&mut self.h0, &H_ROW_0, row);
+        add_products(&mut self.h1, &H_ROW_1, row);
+        add_products(&mut self.h2, &H_ROWS_2_TO_4, row);
+        let (mut g, mut sq) = (self.g, self.sq);
+        for t in row {
+            let rw = t.res * t.wgt;
+            for (gi, &ji) in g.iter_mut().zip(&t.j()) {
+                *gi += ji * rw;
+            }
+            sq += t.res * t.res;
+        }
+        (self.g, self.sq) = (g, sq);
+    }
+
+    /// `H` (mirrored from its upper triangle) and `g`.
+    fn system(&self) -> (Matrix5<f32>, Vector5<f32>) {
+        let mut h = Matrix5::<f32>::zeros();
+        let sums = self.h0.iter().zip(&H_ROW_0);
+        let sums = sums.chain(self.h1.iter().zip(&H_ROW_1));
+        for (&e, &(i, l)) in sums.chain(self.h2.iter().zip(&H_ROWS_2_TO_4)) {
+            h[(i, l)] = e;
+            h[(l, i)] = e;
+        }
+        (h, Vector5::from(self.g))
+    }
+}
+
+/// The term of the pixel `(x, y)` of `lp` (interior pixels only) at rotation `rot` and
+/// photometric `(a, b)`: `None` when it projects behind the camera or outside `lc`.
+// Never inlined: on the Cortex-M4F a pixel's sampling and Jacobian then have the float registers
+// to themselves. Inlined into the row loop, with the loop's invariants (the rotation, both
+// cameras, the photometric parameters) held in registers, the sampled neighbourhood was spilled
+// to the stack on every pixel, and the call costs less than those spills (measured: frame 145 of
+// 7-Scenes, `cargo xtask profile-firmware`).
+#[inline(never)]
+fn term(
+    lp: &Level<'_>,
+    lc: &Level<'_>,
+    rot: &Rotation3<f32>,
+    (a, b): (f32, f32),
+    (x, y): (usize, usize),
+) -> Option<Term> {
+    let ray = Point3::new((x as f32 - lp.cx) / lp.fx, (y as f32 - lp.cy) / lp.fy, 1.0);
+    let p = rot * ray;
+    if p.z <= 1.0e-3 {
+        return None;
+    }
+    let iz = 1.0 / p.z;
+    let (u, v) = (lc.fx * p.x * iz + lc.cx, lc.fy * p.y * iz + lc.cy);
+    let (ic, gx, gy) = lc.sample(u, v)?;
+    let ip = lp.at(x, y);
+    let res = ic - (a * ip + b);
+    // d(u, v)/dp, then dp/dw = -[p]x for the left perturbation R <- exp(w) R.
+    let du = Vector3::new(lc.fx * iz, 0.0, -lc.fx * p.x * iz * iz);
+    let dv = Vector3::new(0.0, lc.fy * iz, -lc.fy * p.y * iz * iz);
+    let dw = -(du * gx + dv * gy).transpose() * hat(&p.coords);
+    let abs = res.abs();
+    let wgt = if abs <= HUBER_GRAY { 1.0 } else { HUBER_GRAY / abs };
+    Some(Term { dw: [dw[0], dw[1], dw[2]], ip, wgt, res })
+}
+
 /// Gauss-Newton normal equations of the alignment at rotation `r` and photometric `(a, b)`:
-/// `(H, g, pixels used, sum of squared residuals)`.
+/// `(H, g, pixels used, sum of squared residuals)`. The terms of an image row are computed
+/// first, then summed ([`Sums::add_row`]).
 fn normal_equations(
     lp: &Level<'_>,
     lc: &Level<'_>,
     r: &UnitQuaternion<f32>,
-    (a, b): (f32, f32),
+    photo: (f32, f32),
 ) -> Option<(Matrix5<f32>, Vector5<f32>, usize, f32)> {
     let rot = r.to_rotation_matrix();
-    // `H` is symmetric: its upper triangle is summed (row by row) and mirrored at the end. Each
-    // entry gets the same products in the same order as a full `j j^T` would give it.
-    let mut upper = [0.0f32; 15];
-    let mut g = [0.0f32; 5];
-    let (mut n, mut sq) = (0usize, 0.0f32);
+    let mut sums = Sums::default();
+    let mut n = 0usize;
+    // One row's terms: at most `SMALL_W - 2` interior pixels.
+    let mut row = [Term::default(); SMALL_W];
     for y in 1..lp.h - 1 {
+        let mut len = 0;
         for x in 1..lp.w - 1 {
-            let ray = Point3::new((x as f32 - lp.cx) / lp.fx, (y as f32 - lp.cy) / lp.fy, 1.0);
-            let p = rot * ray;
-            if p.z <= 1.0e-3 {
-                continue;
+            let Some(t) = term(lp, lc, &rot, photo, (x, y)) else { continue };
+            if let Some(slot) = row.get_mut(len) {
+                *slot = t;
+                len += 1;
             }
-            let iz = 1.0 / p.z;
-            let (u, v) = (lc.fx * p.x * iz + lc.cx, lc.fy * p.y * iz + lc.cy);
-            let Some((ic, gx, gy)) = lc.sample(u, v) else { continue };
-            let ip = lp.at(x, y);
-            let res = ic - (a * ip + b);
-            // d(u, v)/dp, then dp/dw = -[p]x for the left perturbation R <- exp(w) R.
-            let du = Vector3::new(lc.fx * iz, 0.0, -lc.fx * p.x * iz * iz);
-            let dv = Vector3::new(0.0, lc.fy * iz, -lc.fy * p.y * iz * iz);
-            let dw = -(du * gx + dv * gy).transpose() * hat(&p.coords);
-            let j = [dw[0], dw[1], dw[2], -ip, -1.0];
-            let abs = res.abs();
-            let wgt = if abs <= HUBER_GRAY { 1.0 } else { HUBER_GRAY / abs };
-            let mut k = 0;
-            for (i, &ji) in j.iter().enumerate() {
-                for &jl in &j[i..] {
-                    if let Some(e) = upper.get_mut(k) {
-                        *e += ji * jl * wgt;
-                    }
-                    k += 1;
-                }
-            }
-            let rw = res * wgt;
-            for (gi, &ji) in g.iter_mut().zip(&j) {
-                *gi += ji * rw;
-            }
-            n += 1;
-            sq += res * res;
         }
+        sums.add_row(row.get(..len).unwrap_or(&[]));
+        n += len;
     }
-    let mut h = Matrix5::<f32>::zeros();
-    let mut k = 0;
-    for i in 0..5 {
-        for l in i..5 {
-            let e = upper.get(k).copied().unwrap_or(0.0);
-            h[(i, l)] = e;
-            h[(l, i)] = e;
-            k += 1;
-        }
-    }
+    let (mut h, g) = sums.system();
     // A tiny diagonal keeps the photometric block positive definite on flat images.
     for i in 0..5 {
         h[(i, i)] += 1.0e-3;
     }
-    let g = Vector5::from(g);
-    h.iter().all(|v| v.is_finite()).then_some((h, g, n, sq))
+    h.iter().all(|v| v.is_finite()).then_some((h, g, n, sums.sq))
 }
 
 #[cfg(test)]
@@ -351,6 +436,121 @@ mod tests {
             }
         }
         dst
+    }
+
+    /// The normal equations summed pixel by pixel, every sum at once (what `normal_equations` did
+    /// before it summed by rows), as the reference.
+    fn normal_equations_per_pixel(
+        lp: &Level<'_>,
+        lc: &Level<'_>,
+        r: &UnitQuaternion<f32>,
+        (a, b): (f32, f32),
+    ) -> Option<(Matrix5<f32>, Vector5<f32>, usize, f32)> {
+        let rot = r.to_rotation_matrix();
+        // `H` is symmetric: its upper triangle is summed (row by row) and mirrored at the end. Each
+        // entry gets the same products in the same order as a full `j j^T` would give it.
+        let mut upper = [0.0f32; 15];
+        let mut g = [0.0f32; 5];
+        let (mut n, mut sq) = (0usize, 0.0f32);
+        for y in 1..lp.h - 1 {
+            for x in 1..lp.w - 1 {
+                let ray = Point3::new((x as f32 - lp.cx) / lp.fx, (y as f32 - lp.cy) / lp.fy, 1.0);
+                let p = rot * ray;
+                if p.z <= 1.0e-3 {
+                    continue;
+                }
+                let iz = 1.0 / p.z;
+                let (u, v) = (lc.fx * p.x * iz + lc.cx, lc.fy * p.y * iz + lc.cy);
+                let Some((ic, gx, gy)) = lc.sample(u, v) else { continue };
+                let ip = lp.at(x, y);
+                let res = ic - (a * ip + b);
+                // d(u, v)/dp, then dp/dw = -[p]x for the left perturbation R <- exp(w) R.
+                let du = Vector3::new(lc.fx * iz, 0.0, -lc.fx * p.x * iz * iz);
+                let dv = Vector3::new(0.0, lc.fy * iz, -lc.fy * p.y * iz * iz);
+                let dw = -(du * gx + dv * gy).transpose() * hat(&p.coords);
+                let j = [dw[0], dw[1], dw[2], -ip, -1.0];
+                let abs = res.abs();
+                let wgt = if abs <= HUBER_GRAY { 1.0 } else { HUBER_GRAY / abs };
+                let mut k = 0;
+                for (i, &ji) in j.iter().enumerate() {
+                    for &jl in &j[i..] {
+                        if let Some(e) = upper.get_mut(k) {
+                            *e += ji * jl * wgt;
+                        }
+                        k += 1;
+                    }
+                }
+                let rw = res * wgt;
+                for (gi, &ji) in g.iter_mut().zip(&j) {
+                    *gi += ji * rw;
+                }
+                n += 1;
+                sq += res * res;
+            }
+        }
+        let mut h = Matrix5::<f32>::zeros();
+        let mut k = 0;
+        for i in 0..5 {
+            for l in i..5 {
+                let e = upper.get(k).copied().unwrap_or(0.0);
+                h[(i, l)] = e;
+                h[(l, i)] = e;
+                k += 1;
+            }
+        }
+        // A tiny diagonal keeps the photometric block positive definite on flat images.
+        for i in 0..5 {
+            h[(i, i)] += 1.0e-3;
+        }
+        let g = Vector5::from(g);
+        h.iter().all(|v| v.is_finite()).then_some((h, g, n, sq))
+    }
+
+    /// A smooth pseudo-random QVGA scene (sums of sines) shifted by `(dx, dy)` pixels, plus
+    /// hash noise; a square of `SMALL_W / 10` pixels saturates to show the Huber weight.
+    fn scene(dx: f32, dy: f32, seed: u32) -> [u8; 320 * 240] {
+        core::array::from_fn(|k| {
+            let (x, y) = ((k % 320) as f32 + dx, (k / 320) as f32 + dy);
+            let v = 128.0
+                + 60.0 * libm::sinf(x * 0.05) * libm::cosf(y * 0.07)
+                + 40.0 * libm::sinf((x + y) * 0.021 + seed as f32);
+            let noise = ((k as u32 ^ seed).wrapping_mul(0x9E37_79B9) >> 29) as f32;
+            let bright = (100..132).contains(&(k % 320)) && (60..92).contains(&(k / 320));
+            if bright && seed % 2 == 1 { 255 } else { (v + noise).clamp(0.0, 255.0) as u8 }
+        })
+    }
+
+    #[test]
+    fn row_sums_equal_pixel_sums() {
+        let cam = PinholeCamera::new(262.0, 262.0, 160.2, 119.7, 320, 240).unwrap();
+        let cases = [
+            (0.0, 0.0, 0, [0.0, 0.0, 0.0], (1.0, 0.0)),
+            (3.5, -2.0, 1, [0.004, -0.01, 0.002], (1.05, -3.0)),
+            (-12.0, 7.25, 2, [-0.03, 0.02, -0.01], (0.9, 6.5)),
+            (40.0, 30.0, 3, [0.2, -0.15, 0.05], (1.2, -20.0)),
+        ];
+        let mut checked = 0;
+        for (dx, dy, seed, w, photo) in cases {
+            let (a, b) = (scene(0.0, 0.0, seed), scene(dx, dy, seed + 10));
+            let (mut prev, mut cur) = (SmallImage::new(), SmallImage::new());
+            assert!(prev.build(&GrayView::packed(&a, 320, 240).unwrap()));
+            assert!(cur.build(&GrayView::packed(&b, 320, 240).unwrap()));
+            let r = so3_exp(&Vector3::from(w));
+            for coarse in [true, false] {
+                let (lp, lc) = (Level::of(&prev, &cam, coarse), Level::of(&cur, &cam, coarse));
+                let want = normal_equations_per_pixel(&lp, &lc, &r, photo).unwrap();
+                let got = normal_equations(&lp, &lc, &r, photo).unwrap();
+                let bits = |m: &[f32]| -> [u32; 25] {
+                    core::array::from_fn(|k| m.get(k).map_or(0, |v| v.to_bits()))
+                };
+                assert_eq!(bits(got.0.as_slice()), bits(want.0.as_slice()), "H, case {seed}");
+                assert_eq!(bits(got.1.as_slice()), bits(want.1.as_slice()), "g, case {seed}");
+                assert_eq!((got.2, got.3.to_bits()), (want.2, want.3.to_bits()), "case {seed}");
+                checked += got.2;
+            }
+        }
+        // Most pixels overlap in every case: the comparison covered them.
+        assert!(checked > 15_000, "{checked} pixels");
     }
 
     #[test]
