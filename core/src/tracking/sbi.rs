@@ -438,67 +438,47 @@ mod tests {
         dst
     }
 
-    /// The normal equations summed pixel by pixel, every sum at once (what `normal_equations` did
-    /// before it summed by rows), as the reference.
+    /// The normal equations summed pixel by pixel, every sum at once (how `normal_equations`
+    /// summed the same terms before it summed by rows), as the reference.
     fn normal_equations_per_pixel(
         lp: &Level<'_>,
         lc: &Level<'_>,
         r: &UnitQuaternion<f32>,
-        (a, b): (f32, f32),
+        photo: (f32, f32),
     ) -> Option<(Matrix5<f32>, Vector5<f32>, usize, f32)> {
         let rot = r.to_rotation_matrix();
-        // `H` is symmetric: its upper triangle is summed (row by row) and mirrored at the end. Each
-        // entry gets the same products in the same order as a full `j j^T` would give it.
+        // `H` is symmetric: its upper triangle is summed (row by row) and mirrored at the end.
         let mut upper = [0.0f32; 15];
         let mut g = [0.0f32; 5];
         let (mut n, mut sq) = (0usize, 0.0f32);
         for y in 1..lp.h - 1 {
             for x in 1..lp.w - 1 {
-                let ray = Point3::new((x as f32 - lp.cx) / lp.fx, (y as f32 - lp.cy) / lp.fy, 1.0);
-                let p = rot * ray;
-                if p.z <= 1.0e-3 {
-                    continue;
-                }
-                let iz = 1.0 / p.z;
-                let (u, v) = (lc.fx * p.x * iz + lc.cx, lc.fy * p.y * iz + lc.cy);
-                let Some((ic, gx, gy)) = lc.sample(u, v) else { continue };
-                let ip = lp.at(x, y);
-                let res = ic - (a * ip + b);
-                // d(u, v)/dp, then dp/dw = -[p]x for the left perturbation R <- exp(w) R.
-                let du = Vector3::new(lc.fx * iz, 0.0, -lc.fx * p.x * iz * iz);
-                let dv = Vector3::new(0.0, lc.fy * iz, -lc.fy * p.y * iz * iz);
-                let dw = -(du * gx + dv * gy).transpose() * hat(&p.coords);
-                let j = [dw[0], dw[1], dw[2], -ip, -1.0];
-                let abs = res.abs();
-                let wgt = if abs <= HUBER_GRAY { 1.0 } else { HUBER_GRAY / abs };
+                let Some(t) = term(lp, lc, &rot, photo, (x, y)) else { continue };
+                let j = t.j();
                 let mut k = 0;
                 for (i, &ji) in j.iter().enumerate() {
                     for &jl in &j[i..] {
-                        if let Some(e) = upper.get_mut(k) {
-                            *e += ji * jl * wgt;
-                        }
+                        upper[k] += ji * jl * t.wgt;
                         k += 1;
                     }
                 }
-                let rw = res * wgt;
+                let rw = t.res * t.wgt;
                 for (gi, &ji) in g.iter_mut().zip(&j) {
                     *gi += ji * rw;
                 }
                 n += 1;
-                sq += res * res;
+                sq += t.res * t.res;
             }
         }
         let mut h = Matrix5::<f32>::zeros();
         let mut k = 0;
         for i in 0..5 {
             for l in i..5 {
-                let e = upper.get(k).copied().unwrap_or(0.0);
-                h[(i, l)] = e;
-                h[(l, i)] = e;
+                h[(i, l)] = upper[k];
+                h[(l, i)] = upper[k];
                 k += 1;
             }
         }
-        // A tiny diagonal keeps the photometric block positive definite on flat images.
         for i in 0..5 {
             h[(i, i)] += 1.0e-3;
         }
@@ -507,7 +487,7 @@ mod tests {
     }
 
     /// A smooth pseudo-random QVGA scene (sums of sines) shifted by `(dx, dy)` pixels, plus
-    /// hash noise; a square of `SMALL_W / 10` pixels saturates to show the Huber weight.
+    /// hash noise; for odd seeds a 32 x 32 pixel square saturates, so the Huber weight acts.
     fn scene(dx: f32, dy: f32, seed: u32) -> [u8; 320 * 240] {
         core::array::from_fn(|k| {
             let (x, y) = ((k % 320) as f32 + dx, (k / 320) as f32 + dy);
