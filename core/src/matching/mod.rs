@@ -65,7 +65,7 @@ pub use region::{RegionMatch, match_region};
 pub use roi::{MAX_ROI_HALF_SIZE, Roi, RoiParams, select_rois};
 pub use track::{
     MAX_TRACK_COARSE_STEPS, MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS, PatchTrack, TrackParams,
-    track_patch,
+    TrackScratch, track_patch, track_patch_with,
 };
 
 /// Why a region could not be matched.

@@ -582,3 +582,47 @@ fn track_bad_input_and_borders_do_not_panic() {
     let tv = GrayView::packed(&tiny, 2, 2).unwrap();
     assert_eq!(track_patch(&sv, c, &IDENTITY, &tv, (0.5, 0.5), &p1), Err(MatchError::NoCandidate));
 }
+
+/// One scratch reused by every call gives each call's result bit for bit as a fresh one does,
+/// whatever the calls before it left in the scratch: successes, failures part way through (an
+/// ambiguous search, a refinement off the image), other radii, steps and template sizes.
+#[test]
+fn track_with_a_reused_scratch_equals_a_fresh_one() {
+    let m = Motion::similarity(4.0, 1.04, (2.6, -1.8));
+    let src = textured(0x51DE_CAFE);
+    let dst = warp(&src, m, 1.1, -6.0);
+    let (sv, dv) = (GrayView::packed(&src, W, H).unwrap(), GrayView::packed(&dst, W, H).unwrap());
+    let f = TrackParams::FINE;
+    let params = [
+        f,
+        TrackParams::GUIDE,
+        TrackParams { search_radius: 0, ..f },
+        TrackParams::GUIDE_WIDE,
+        TrackParams { half_size: 6, ..f },
+        TrackParams { search_radius: 2, search_step: 2, ..TrackParams::GUIDE },
+    ];
+    let mut scratch = TrackScratch::new();
+    let (mut calls, mut ok, mut failed) = (0, 0, 0);
+    for (k, (cy, cx)) in
+        (8..232).step_by(11).flat_map(|y| (8..312).step_by(13).map(move |x| (y, x))).enumerate()
+    {
+        let c = (cx as f32 + 0.3, cy as f32 - 0.2);
+        let truth = m.apply(c);
+        // Prediction errors of up to 3 px; near the border, searches and refinements leave the
+        // image.
+        let e = ((k % 7) as f32 - 3.0, (k % 5) as f32 * 0.7 - 1.4);
+        let pred = (truth.0 + e.0, truth.1 + e.1);
+        let p = &params[k % params.len()];
+        let fresh = track_patch(&sv, c, &m.a, &dv, pred, p);
+        let reused = track_patch_with(&mut scratch, &sv, c, &m.a, &dv, pred, p);
+        let bits = |r: &Result<PatchTrack, MatchError>| {
+            r.as_ref().map(|t| (t.uv.0.to_bits(), t.uv.1.to_bits(), t.zncc.to_bits())).ok()
+        };
+        assert_eq!(bits(&reused), bits(&fresh), "call {k} at {c:?}");
+        assert_eq!(reused, fresh, "call {k} at {c:?}");
+        calls += 1;
+        if fresh.is_ok() { ok += 1 } else { failed += 1 }
+    }
+    std::println!("{calls} calls: {ok} tracked, {failed} failed");
+    assert!(ok >= 150 && failed >= 50, "{ok} tracked, {failed} failed");
+}

@@ -10,7 +10,9 @@ use super::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::Map;
-use crate::matching::{MatchError, MatchParams, TrackParams, match_region, track_patch};
+use crate::matching::{
+    MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
+};
 
 /// Grid the guides are spread over (columns, rows).
 const GUIDE_GRID: (usize, usize) = (4, 3);
@@ -276,6 +278,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.correspondences.clear();
         self.sources.clear();
         let (zmin, zmax) = (self.params.depth_min_m, self.params.depth_max_m);
+        // One tracking workspace for all the candidates, not one zeroed per track.
+        let mut scratch = TrackScratch::new();
         for c in &self.candidates {
             let Some(t) = self.local.items().get(usize::from(c.index)) else { continue };
             let Some((template, centre)) = t.template() else { continue };
@@ -283,18 +287,21 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             let pred = (c.uv.x, c.uv.y);
             let gray = &frame.gray;
             let matched = match matcher {
-                Matcher::Patch(tp) => track_patch(&template, centre, &affine, gray, pred, tp)
-                    .or_else(|e| match e {
-                        // Lucas-Kanade alone missed: one search at radius 1.
-                        MatchError::RefinementFailed | MatchError::LowCorrelation { .. }
-                            if tp.search_radius == 0 =>
-                        {
-                            let wider = TrackParams { search_radius: 1, ..*tp };
-                            track_patch(&template, centre, &affine, gray, pred, &wider)
-                        }
-                        e => Err(e),
-                    })
-                    .map(|m| m.uv),
+                Matcher::Patch(tp) => {
+                    let s = &mut scratch;
+                    track_patch_with(s, &template, centre, &affine, gray, pred, tp)
+                        .or_else(|e| match e {
+                            // Lucas-Kanade alone missed: one search at radius 1.
+                            MatchError::RefinementFailed | MatchError::LowCorrelation { .. }
+                                if tp.search_radius == 0 =>
+                            {
+                                let wider = TrackParams { search_radius: 1, ..*tp };
+                                track_patch_with(s, &template, centre, &affine, gray, pred, &wider)
+                            }
+                            e => Err(e),
+                        })
+                        .map(|m| m.uv)
+                }
                 Matcher::Bank(m) => {
                     let params = MatchParams { initial_affine: affine, ..*m };
                     match_region(&template, centre, gray, pred, &params).map(|m| m.centre_in_target)

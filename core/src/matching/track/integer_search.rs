@@ -13,7 +13,7 @@ use crate::matching::track::{
 const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_COARSE_STEPS + 1;
 
 /// The template grid rounded to integers for the search.
-struct Quantized<const N: usize> {
+pub(super) struct Quantized<const N: usize> {
     /// Rounded values (gray level minus 128, so in -128..=127).
     values: [[i16; N]; N],
     /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
@@ -24,8 +24,9 @@ struct Quantized<const N: usize> {
 }
 
 impl<const N: usize> Quantized<N> {
-    /// All zero, to be filled by [`Self::fill`].
-    const EMPTY: Self = Self { values: [[0; N]; N], sum: 0, var_n2: 0, root_var_n2: 0.0 };
+    /// All zero, to be filled by [`Self::fill`] (which writes every field).
+    pub(super) const EMPTY: Self =
+        Self { values: [[0; N]; N], sum: 0, var_n2: 0, root_var_n2: 0.0 };
 
     /// Fills `self` with the rounded grid of `t` and its sums.
     fn fill<const S: usize>(&mut self, t: &Template<N, S>) {
@@ -157,7 +158,11 @@ struct BlockSums {
 /// the sum and the sum of squares of the `N` pixels below it. A candidate's block sums are then
 /// `N` column sums instead of `N^2` pixels, so its ZNCC reads the pixels only for the product with
 /// the template.
-struct ColumnSums<const N: usize> {
+///
+/// Only the first `width` columns of a search are ever written or read, and `row` says whether
+/// they hold a candidate row's sums, so one value serves search after search (see
+/// [`super::Workspace`]) once [`Self::restart`] forgets the last one's row.
+pub(super) struct ColumnSums<const N: usize> {
     sum: [i32; MAX_WINDOW],
     sum_sq: [i32; MAX_WINDOW],
     /// Window row of the candidates these sums are for; `None` before the first row or when a
@@ -166,8 +171,13 @@ struct ColumnSums<const N: usize> {
 }
 
 impl<const N: usize> ColumnSums<N> {
-    fn new() -> Self {
-        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None }
+    /// No candidate row yet.
+    pub(super) const EMPTY: Self =
+        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None };
+
+    /// Forgets the candidate row: the next [`Self::block`] computes its sums from scratch.
+    fn restart(&mut self) {
+        self.row = None;
     }
 
     /// The block sums of the candidate at window column `ix` of the candidate row whose top
@@ -208,9 +218,13 @@ impl<const N: usize> ColumnSums<N> {
                     }
                 }
                 _ => {
-                    sum.fill(0);
-                    sum_sq.fill(0);
-                    for j in 0..N {
+                    // The first row sets the sums (no clearing pass), the others add to them.
+                    let first = pixels(y)?;
+                    for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(first) {
+                        let s = i32::from(s);
+                        (*a, *b) = (s, s * s);
+                    }
+                    for j in 1..N {
                         let row = pixels(y + j)?;
                         for ((a, b), &s) in sum.iter_mut().zip(sum_sq.iter_mut()).zip(row) {
                             let s = i32::from(s);
@@ -229,9 +243,11 @@ impl<const N: usize> ColumnSums<N> {
 }
 
 /// The integer search of step 2 of the module documentation: the best pixel (integer
-/// coordinates, within `R` of the rounded prediction on each axis) and its ZNCC.
+/// coordinates, within `R` of the rounded prediction on each axis) and its ZNCC. `q` and
+/// `columns` are scratch, overwritten.
 pub(super) fn search<const N: usize, const S: usize>(
     t: &Template<N, S>,
+    (q, columns): (&mut Quantized<N>, &mut ColumnSums<N>),
     target: &GrayView<'_>,
     predicted: (f32, f32),
     params: &TrackParams,
@@ -252,10 +268,10 @@ pub(super) fn search<const N: usize, const S: usize>(
     let (x0, y0) = ((px - reach) as usize, (py - reach) as usize);
     let (data, stride) = (target.data(), target.stride());
     let step = params.search_step;
-    let mut q = Quantized::EMPTY;
     q.fill(t);
+    let q = &*q;
     let width = 2 * r + N;
-    let mut columns = ColumnSums::<N>::new();
+    columns.restart();
     // The score of the candidate at window position `(ix, iy)` whose product with the template
     // is `st` (computed here when `None`).
     let mut score = |ix: usize, iy: usize, st: Option<i32>| {
@@ -400,7 +416,8 @@ mod tests {
         }
     }
 
-    /// Column sums slid from any earlier candidate row equal the sums computed from scratch.
+    /// Column sums slid from any earlier candidate row equal the sums computed from scratch, and
+    /// those do not depend on what the sums held before.
     #[test]
     fn slid_column_sums_equal_fresh_ones() {
         const N: usize = 9;
@@ -411,9 +428,11 @@ mod tests {
         // every visited block lies inside the image.
         let visits = [0usize, 1, 2, 4, 7, 15, 16, 3, 3, 12, 11, 20];
         assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
-        let mut slid = ColumnSums::<N>::new();
+        let mut slid = ColumnSums::<N>::EMPTY;
         for &iy in &visits {
-            let mut fresh = ColumnSums::<N>::new();
+            // A value left over from another search: no row, sums that are not zero.
+            let mut fresh =
+                ColumnSums::<N> { sum: [12_345; MAX_WINDOW], sum_sq: [-7; MAX_WINDOW], row: None };
             for ix in [0usize, 5, width - N] {
                 let a =
                     slid.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
