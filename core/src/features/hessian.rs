@@ -4,11 +4,11 @@
 
 use super::bucket::GridBuckets;
 use super::filter::{
-    BELOW, FIRST_SAMPLE, LAYERS, LEVEL_FILTER_SIZES, LEVEL_STEPS, Layer, MAX_HALF,
+    BELOW, FIRST_SAMPLE, LAYERS, LEVEL_FILTER_SIZES, LEVEL_STEPS, Layer, MAX_HALF, Threshold,
     laplacian_positive_at, response_at, response_row,
 };
 use super::refine::{Cube, is_maximum, plane_below, refine, sigma_of_size};
-use super::ring::{IntegralRing, half_row};
+use super::ring::IntegralRing;
 use super::{Feature, FeatureError, FeatureVec, HessianParams};
 use crate::image::GrayView;
 
@@ -25,15 +25,19 @@ const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1
 /// The Fast-Hessian detector with its whole workspace, for images up to `W` pixels wide (any
 /// height). `W <= MAX_WIDTH` (640) is the intended range.
 ///
-/// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows and 12,392 bytes of
-/// grid cells: 36,712 bytes for W = 320, 61,032 bytes for W = 640 (the unit tests check both
-/// figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
+/// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows, `W` bytes of marks and
+/// 12,392 bytes of grid cells: 37,032 bytes for W = 320, 61,672 bytes for W = 640 (the unit
+/// tests check both figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
 #[derive(Debug, Clone)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
     /// Responses of the middle layers 1 and 2 of the level being scanned: layer `k` at
     /// `[ring row][(k - 1) * (W / 2) + x / step]`.
     middle: [[f32; W]; RESPONSE_RING_ROWS],
+    /// Which samples of `middle` are above the threshold, a bit each: those of layer `k` in
+    /// ring row `r` from byte `(2 * r + k - 1) * W.div_ceil(16)` (only `3 * W / 8` bytes used:
+    /// an array length cannot be computed from `W`).
+    marks: [u8; W],
     buckets: GridBuckets,
 }
 
@@ -54,6 +58,7 @@ impl<const W: usize> HessianDetector<W> {
         Self {
             integral: IntegralRing::new(),
             middle: [[0.0; W]; RESPONSE_RING_ROWS],
+            marks: [0; W],
             buckets: GridBuckets::new(),
         }
     }
@@ -91,8 +96,8 @@ impl<const W: usize> HessianDetector<W> {
         out.clear();
         params.validate()?;
         self.buckets.reset(params, img.width(), img.height());
-        let Self { integral, middle, buckets } = self;
-        Scan { integral, middle }.run(img, params, &mut |f| buckets.insert(&f))?;
+        let Self { integral, middle, marks, buckets } = self;
+        Scan { integral, middle, marks }.run(img, params, &mut |f| buckets.insert(&f))?;
         self.buckets.select(usize::from(params.max_features), out)
     }
 
@@ -108,8 +113,8 @@ impl<const W: usize> HessianDetector<W> {
         sink: &mut dyn FnMut(Feature),
     ) -> Result<(), FeatureError> {
         params.validate()?;
-        let Self { integral, middle, .. } = self;
-        Scan { integral, middle }.run(img, params, sink)
+        let Self { integral, middle, marks, .. } = self;
+        Scan { integral, middle, marks }.run(img, params, sink)
     }
 }
 
@@ -161,6 +166,7 @@ impl Grid {
 struct Scan<'a, const W: usize> {
     integral: &'a mut IntegralRing<W>,
     middle: &'a mut [[f32; W]; RESPONSE_RING_ROWS],
+    marks: &'a mut [u8; W],
 }
 
 impl<const W: usize> Scan<'_, W> {
@@ -175,9 +181,10 @@ impl<const W: usize> Scan<'_, W> {
             return Err(FeatureError::ImageTooWide { width: w, max: W });
         }
         let t = params.threshold;
+        let t = &[Threshold::new(t, &LAYERS[1]), Threshold::new(t, &LAYERS[2])];
         if let Some(grid) = Grid::new(0, w, h) {
             for (r, pixels) in img.rows().enumerate() {
-                self.integral.push(r, pixels.iter().copied());
+                self.integral.push(r, pixels);
                 self.after_row(grid, r, t, sink);
             }
         }
@@ -187,7 +194,7 @@ impl<const W: usize> Scan<'_, W> {
             let mut rows = img.rows();
             let pairs = core::iter::from_fn(|| Some((rows.next()?, rows.next()?)));
             for (r, (top, bottom)) in pairs.enumerate() {
-                self.integral.push(r, half_row(top, bottom));
+                self.integral.push_half(r, top, bottom);
                 self.after_row(grid, r, t, sink);
             }
         }
@@ -197,30 +204,46 @@ impl<const W: usize> Scan<'_, W> {
     /// Work once integral row `r` is in: the middle layers' response row `r - MAX_HALF` (the
     /// last whose filters it completes), then suppression one sample row above it (whose outer
     /// layers, evaluated on demand at `+- step` rows, need integral rows up to `r`).
-    fn after_row(&mut self, grid: Grid, r: usize, threshold: f32, sink: &mut dyn FnMut(Feature)) {
+    fn after_row(
+        &mut self,
+        grid: Grid,
+        r: usize,
+        threshold: &[Threshold; MIDDLE_LAYERS],
+        sink: &mut dyn FnMut(Feature),
+    ) {
         let Some(y) = r.checked_sub(MAX_HALF) else { return };
         if y < FIRST_SAMPLE || y % grid.step != 0 {
             return;
         }
         self.middle_rows(grid, y, threshold);
         if y >= FIRST_SAMPLE + 2 * grid.step {
-            self.suppress_row(grid, y - grid.step, threshold, sink);
+            self.suppress_row(grid, y - grid.step, threshold[0].value(), sink);
         }
     }
 
     /// Evaluates det(H) of the middle layers along sample row `y` ([`BELOW`] where it cannot
-    /// exceed `threshold`).
-    fn middle_rows(&mut self, grid: Grid, y: usize, threshold: f32) {
+    /// exceed the threshold) and marks the samples above it.
+    fn middle_rows(&mut self, grid: Grid, y: usize, threshold: &[Threshold; MIDDLE_LAYERS]) {
         let slot = (y / grid.step) % RESPONSE_RING_ROWS;
         let Some(dst) = self.middle.get_mut(slot) else { return };
         let (k0, k1) = grid.samples();
         let half = W / 2;
-        for (row, layer) in dst.chunks_exact_mut(half).zip(LAYERS.iter().skip(1)) {
+        let marks = self.marks.chunks_mut(W.div_ceil(16)).skip(2 * slot);
+        let layers = LAYERS.iter().skip(1).zip(threshold).zip(marks);
+        for (row, ((layer, t), marks)) in dst.chunks_exact_mut(half).zip(layers) {
+            marks.fill(0);
             if let Some(out) = row.get_mut(k0..=k1) {
                 let at = (FIRST_SAMPLE, y);
-                response_row(&*self.integral, layer, grid.step, at, threshold, out);
+                response_row(&*self.integral, layer, grid.step, at, t, (out, marks));
             }
         }
+    }
+
+    /// The marks of sample row `y` of layer `k` (a middle layer): bit `j` for sample `k0 + j`
+    /// (see [`HessianDetector`]'s `marks`).
+    fn marks(&self, grid: Grid, k: usize, y: usize) -> &[u8] {
+        let slot = (y / grid.step) % RESPONSE_RING_ROWS;
+        self.marks.chunks(W.div_ceil(16)).nth(2 * slot + k - 1).unwrap_or(&[])
     }
 
     /// Sample rows `yc - step`, `yc`, `yc + step` of layer `k` (a middle layer).
@@ -236,41 +259,56 @@ impl<const W: usize> Scan<'_, W> {
     /// Non-maximum suppression and refinement along sample row `yc` (`yc >= FIRST + step`).
     fn suppress_row(&self, grid: Grid, yc: usize, t: f32, sink: &mut dyn FnMut(Feature)) {
         let (k0, k1) = grid.samples();
-        for (k, layer) in LAYERS.iter().enumerate().take(LAYERS.len() - 1).skip(1) {
+        for k in 1..LAYERS.len() - 1 {
             let own = self.middle_planes(grid, k, yc);
-            let [_, centre, _] = own;
-            let row = centre.get(k0 + 1..k1).unwrap_or(&[]);
-            // Most samples fail the first test: `v > t` also rejects NaN and [`BELOW`].
-            for (i, &v) in (k0 + 1..).zip(row).filter(|&(_, &v)| v > t) {
-                let Some(own_plane) = plane(&own, i) else { continue };
-                if !plane_below(v, &own_plane, 1) {
-                    continue;
+            // Only the marked samples (above the threshold, a few percent) are visited, in
+            // order; the marks of row `yc` were set when its responses were computed.
+            for (byte, &bits) in self.marks(grid, k, yc).iter().enumerate() {
+                let mut bits = bits;
+                while bits != 0 {
+                    let i = k0 + 8 * byte + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if i > k0 && i < k1 {
+                        self.try_sample(grid, (k, &own), (i, yc), t, sink);
+                    }
                 }
-                let at = (i, yc);
-                // The held neighbour layer first: it is cheaper than one evaluated on demand.
-                let (below, above) = if k == 1 {
-                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
-                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
-                    (below, above)
-                } else {
-                    let Some(below) = self.neighbour(grid, k - 1, 0, at, v) else { continue };
-                    let Some(above) = self.neighbour(grid, k + 1, 2, at, v) else { continue };
-                    (below, above)
-                };
-                // Refinement reads every value: replace the ones not computed by exact ones.
-                let Some(own_plane) = self.exact(own_plane, layer, grid.step, at, true) else {
-                    continue;
-                };
-                let Some(f) = candidate(&[below, own_plane, above], t, grid, i, yc, layer) else {
-                    continue;
-                };
-                let x = i * grid.step;
-                let Some(lap) = laplacian_positive_at(&*self.integral, layer, x, yc) else {
-                    continue;
-                };
-                sink(Feature { laplacian_positive: lap, ..f });
             }
         }
+    }
+
+    /// Non-maximum suppression and refinement at sample `(i, yc)` of middle layer `k`, if its
+    /// response is above the threshold `t`; `own` holds the layer's rows around `yc`.
+    fn try_sample(
+        &self,
+        grid: Grid,
+        (k, own): (usize, &[&[f32]; 3]),
+        at: (usize, usize),
+        t: f32,
+        sink: &mut dyn FnMut(Feature),
+    ) -> Option<()> {
+        let (i, yc) = at;
+        let layer = LAYERS.get(k)?;
+        let v = *own[1].get(i)?;
+        // Marked samples are above `t`; the test also rejects NaN and [`BELOW`].
+        (v > t).then_some(())?;
+        let own_plane = plane(own, i)?;
+        if !plane_below(v, &own_plane, 1) {
+            return None;
+        }
+        // The held neighbour layer first: it is cheaper than one evaluated on demand.
+        let (below, above) = if k == 1 {
+            let above = self.neighbour(grid, k + 1, 2, at, v)?;
+            (self.neighbour(grid, k - 1, 0, at, v)?, above)
+        } else {
+            let below = self.neighbour(grid, k - 1, 0, at, v)?;
+            (below, self.neighbour(grid, k + 1, 2, at, v)?)
+        };
+        // Refinement reads every value: replace the ones not computed by exact ones.
+        let own_plane = self.exact(own_plane, layer, grid.step, at, true)?;
+        let f = candidate(&[below, own_plane, above], t, grid, i, yc, layer)?;
+        let lap = laplacian_positive_at(&*self.integral, layer, i * grid.step, yc)?;
+        sink(Feature { laplacian_positive: lap, ..f });
+        Some(())
     }
 
     /// The exact 3x3 responses of layer `k` around sample `(i, yc)`, the cube's scale index `s`
