@@ -63,8 +63,8 @@ pub fn core_structures() -> Vec<Structure> {
         row::<Pose>("geometry::Pose", "`Isometry3<f32>`"),
         row::<QvgaHessianDetector>(
             "features::QvgaHessianDetector",
-            "320 px rows: rolling u16 integral ring (32 rows), middle-layer response rows, \
-             bucketing grid",
+            "320 px rows: rolling u16 integral ring (32 rows), middle-layer response rows and \
+             their suppression marks, bucketing grid",
         ),
         row::<VgaHessianDetector>("features::VgaHessianDetector", "the same at 640 px rows"),
         row::<FeatureVec>(
