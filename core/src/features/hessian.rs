@@ -27,7 +27,8 @@ const _: () = assert!(MIDDLE_LAYERS == 2 && LEVEL_STEPS[0] == 2 && LEVEL_STEPS[1
 ///
 /// Size: `2*W*32` bytes of integral rows, `12*W` bytes of response rows, `W` bytes of marks and
 /// 12,392 bytes of grid cells: 37,032 bytes for W = 320, 61,672 bytes for W = 640 (the unit
-/// tests check both figures). Build it in a `static` or in place; [`HessianDetector::new`] is `const`.
+/// tests check both figures). Build it in a `static` or in place; [`HessianDetector::new`] is
+/// `const`.
 #[derive(Debug, Clone)]
 pub struct HessianDetector<const W: usize> {
     integral: IntegralRing<W>,
@@ -169,7 +170,16 @@ struct Scan<'a, const W: usize> {
     marks: &'a mut [u8; W],
 }
 
+/// The row of the response ring (and of the marks) that holds sample row `y` of `grid`.
+fn ring_slot(grid: Grid, y: usize) -> usize {
+    (y / grid.step) % RESPONSE_RING_ROWS
+}
+
 impl<const W: usize> Scan<'_, W> {
+    /// Bytes of marks per middle-layer response row: a bit for each of its `W / 2` samples,
+    /// rounded up (see [`HessianDetector`]'s `marks`).
+    const MARK_BYTES: usize = W.div_ceil(16);
+
     fn run(
         &mut self,
         img: &GrayView<'_>,
@@ -224,11 +234,11 @@ impl<const W: usize> Scan<'_, W> {
     /// Evaluates det(H) of the middle layers along sample row `y` ([`BELOW`] where it cannot
     /// exceed the threshold) and marks the samples above it.
     fn middle_rows(&mut self, grid: Grid, y: usize, threshold: &[Threshold; MIDDLE_LAYERS]) {
-        let slot = (y / grid.step) % RESPONSE_RING_ROWS;
+        let slot = ring_slot(grid, y);
         let Some(dst) = self.middle.get_mut(slot) else { return };
         let (k0, k1) = grid.samples();
         let half = W / 2;
-        let marks = self.marks.chunks_mut(W.div_ceil(16)).skip(2 * slot);
+        let marks = self.marks.chunks_mut(Self::MARK_BYTES).skip(MIDDLE_LAYERS * slot);
         let layers = LAYERS.iter().skip(1).zip(threshold).zip(marks);
         for (row, ((layer, t), marks)) in dst.chunks_exact_mut(half).zip(layers) {
             marks.fill(0);
@@ -242,14 +252,14 @@ impl<const W: usize> Scan<'_, W> {
     /// The marks of sample row `y` of layer `k` (a middle layer): bit `j` for sample `k0 + j`
     /// (see [`HessianDetector`]'s `marks`).
     fn marks(&self, grid: Grid, k: usize, y: usize) -> &[u8] {
-        let slot = (y / grid.step) % RESPONSE_RING_ROWS;
-        self.marks.chunks(W.div_ceil(16)).nth(2 * slot + k - 1).unwrap_or(&[])
+        let index = MIDDLE_LAYERS * ring_slot(grid, y) + k - 1;
+        self.marks.chunks(Self::MARK_BYTES).nth(index).unwrap_or(&[])
     }
 
     /// Sample rows `yc - step`, `yc`, `yc + step` of layer `k` (a middle layer).
     fn middle_planes(&self, grid: Grid, k: usize, yc: usize) -> [&[f32]; 3] {
         let row = |y: usize| {
-            let r = self.middle.get((y / grid.step) % RESPONSE_RING_ROWS);
+            let r = self.middle.get(ring_slot(grid, y));
             let at = k.wrapping_sub(1) * (W / 2);
             r.and_then(|r| r.get(at..at + W / 2)).unwrap_or(&[])
         };

@@ -59,8 +59,8 @@
 //! response rows, `W` bytes of marks (a bit per middle-layer sample above the threshold, for
 //! suppression to visit only those) and about `16*MAX_GRID_CELLS*MAX_PER_CELL` bytes of cell
 //! candidates: [`QvgaHessianDetector`] (W = 320) is 37,032 bytes (about 36 KiB),
-//! [`VgaHessianDetector`] (W = 640) 61,672 bytes. The output vector (`MAX_FEATURES_PER_FRAME` x 20 bytes = 10,240
-//! bytes) belongs to the caller.
+//! [`VgaHessianDetector`] (W = 640) 61,672 bytes. The output vector
+//! (`MAX_FEATURES_PER_FRAME` x 20 bytes = 10,240 bytes) belongs to the caller.
 
 mod bucket;
 mod descriptor;
