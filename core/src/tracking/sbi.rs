@@ -372,14 +372,34 @@ impl Sums {
     }
 }
 
-/// The term of the pixel `(x, y)` of `lp` (interior pixels only) at rotation `rot` and
-/// photometric `(a, b)`: `None` when it projects behind the camera or outside `lc`.
+/// [`term`] written into `out`: whether there is one (`out` is left as it was when not).
 // Never inlined: on the Cortex-M4F a pixel's sampling and Jacobian then have the float registers
 // to themselves. Inlined into the row loop, with the loop's invariants (the rotation, both
 // cameras, the photometric parameters) held in registers, the sampled neighbourhood was spilled
 // to the stack on every pixel, and the call costs less than those spills (measured: frame 145 of
-// 7-Scenes, `cargo xtask profile-firmware`).
+// 7-Scenes, `cargo xtask profile-firmware`). It writes the term into the row's slot itself:
+// returned as an `Option<Term>`, the term went through two stack copies on the way there.
 #[inline(never)]
+fn term_into(
+    out: &mut Term,
+    lp: &Level<'_>,
+    lc: &Level<'_>,
+    rot: &Rotation3<f32>,
+    photo: (f32, f32),
+    xy: (usize, usize),
+) -> bool {
+    match term(lp, lc, rot, photo, xy) {
+        Some(t) => {
+            *out = t;
+            true
+        }
+        None => false,
+    }
+}
+
+/// The term of the pixel `(x, y)` of `lp` (interior pixels only) at rotation `rot` and
+/// photometric `(a, b)`: `None` when it projects behind the camera or outside `lc`.
+#[inline(always)]
 fn term(
     lp: &Level<'_>,
     lc: &Level<'_>,
@@ -423,9 +443,9 @@ fn normal_equations(
     for y in 1..lp.h - 1 {
         let mut len = 0;
         for x in 1..lp.w - 1 {
-            let Some(t) = term(lp, lc, &rot, photo, (x, y)) else { continue };
-            if let Some(slot) = row.get_mut(len) {
-                *slot = t;
+            // The row holds every interior pixel: there is always a slot.
+            let Some(slot) = row.get_mut(len) else { break };
+            if term_into(slot, lp, lc, &rot, photo, (x, y)) {
                 len += 1;
             }
         }
