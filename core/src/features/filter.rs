@@ -457,6 +457,13 @@ fn second_all_from<'a, T: Window<'a>>(
     Some((second_xx(l, [a, b]), second_yy(l, [c, d, e, f]), second_xy(l, [g, h, i, j])))
 }
 
+/// Integer `Dxx + Dyy` of lobe `l` at the windows starting at column `base` (the `Dxx` and
+/// `Dyy` rows of [`Layer::rows`] only).
+fn trace_from<'a, T: Window<'a>>(l: usize, rows: [&'a [u16]; 6], base: usize) -> Option<i32> {
+    let [a, b, c, d, e, f] = windows_from::<T, 6>(rows, base)?;
+    Some(second_xx(l, [a, b]) + second_yy(l, [c, d, e, f]))
+}
+
 /// Integer `(Dxx, Dyy, Dxy)` of `layer` at sample `(x, y)`, if the integral rows hold it.
 pub(super) fn derivatives_at<I: IntegralRows>(
     ii: &I,
@@ -484,15 +491,19 @@ pub(super) fn response_at<I: IntegralRows>(
     Some(det_h(xx_yy_product((dxx, dyy), inv_area), dxy, inv_area))
 }
 
-/// Whether the trace `Dxx + Dyy` (the Laplacian) of `layer` at `(x, y)` is `>= 0`.
+/// Whether the trace `Dxx + Dyy` (the Laplacian) of `layer` at `(x, y)` is `>= 0`; `None`
+/// where [`derivatives_at`] gives none (the `Dxy` rows are not read, but lie within the rows
+/// the others span, so the integral rows hold all or none of them).
 pub(super) fn laplacian_positive_at<I: IntegralRows>(
     ii: &I,
     layer: &Layer,
     x: usize,
     y: usize,
 ) -> Option<bool> {
-    let (dxx, dyy, _) = derivatives_at(ii, layer, x, y)?;
-    Some(dxx + dyy >= 0)
+    let [a, b, c, d, e, f, ..] = layer.rows(ii, y);
+    let base = x.checked_sub(layer.b + 1)?;
+    let trace = with_window!(1, layer.l, trace_from([a, b, c, d, e, f], base))?;
+    Some(trace >= 0)
 }
 
 #[cfg(test)]

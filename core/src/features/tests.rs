@@ -139,6 +139,7 @@ fn brute_box(img: &GrayView<'_>, (x0, x1): (usize, usize), (y0, y1): (usize, usi
 
 #[test]
 fn lobe_sums_modulo_2_16_are_exact_even_on_saturated_images() {
+    // The Laplacian's sign is checked here too: it reads only the `Dxx` and `Dyy` rows.
     // Saturated (255) blocks make the largest lobes reach their maximum sums; the texture around
     // them gives every sign of every derivative.
     let (w, h) = (120, 100);
@@ -171,6 +172,8 @@ fn lobe_sums_modulo_2_16_are_exact_even_on_saturated_images() {
                 let got = derivatives_at(&ii, layer, x, y).unwrap();
                 let got = (i64::from(got.0), i64::from(got.1), i64::from(got.2));
                 assert_eq!(got, (dxx, dyy, dxy), "size {} at ({x}, {y})", layer.size);
+                let lap = laplacian_positive_at(&ii, layer, x, y);
+                assert_eq!(lap, Some(dxx + dyy >= 0), "size {} at ({x}, {y})", layer.size);
             }
         }
     }
