@@ -331,7 +331,7 @@ fn datasets_without_usable_frames_are_errors() {
     // Asking for zero frames.
     let tmp2 = fixture(3);
     let err = open_err(tmp2.path(), &DatasetOptions { max_frames: Some(0), ..vga() });
-    assert_mentions(&err, &["3 associated", "max_frames Some(0)"]);
+    assert_mentions(&err, &["3 associated", "at most 0 kept (--max-frames)"]);
     empty(err, tmp2.path());
 }
 

@@ -21,7 +21,7 @@ pub mod slam;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
 use crate::{eval, plot};
@@ -68,7 +68,7 @@ struct EvalArgs {
 fn run_eval(args: &EvalArgs) -> Result<()> {
     let report = eval::run_eval(&args.groundtruth, &args.estimate, args.max_dt)?;
     if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir)?;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         plot::plot_report(&report, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
     }
     if args.json {
@@ -91,8 +91,48 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("ferroslam-sim: error: {e:#}");
+            eprintln!("ferroslam-sim: error: {}", describe(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// `e` and its causes, joined by `": "` (one line), each message trimmed. A cause whose message
+/// the text so far already holds is left out: most of our errors name their cause in their own
+/// message (`cannot read FILE: CAUSE`) and also return it as their `source`, which `anyhow`'s
+/// `{:#}` would print a second time.
+fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        let text = text.trim();
+        if out.contains(text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(text);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn causes_already_in_the_message_are_printed_once() {
+        let io = || std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        // A message that names its source, as the dataset reader's errors do.
+        let read = crate::dataset::DatasetError::Io { path: "a/b.toml".into(), source: io() };
+        let e = anyhow::Error::new(read).context("frame 2");
+        assert_eq!(describe(&e), "frame 2: cannot read a/b.toml: no such file");
+        // A context that does not name its cause keeps it.
+        let e = anyhow::Error::new(io()).context("creating out");
+        assert_eq!(describe(&e), "creating out: no such file");
+        // Messages are trimmed (some decoders end theirs with a newline).
+        let e = anyhow::anyhow!("bad header\n").context("decoding x.png");
+        assert_eq!(describe(&e), "decoding x.png: bad header");
     }
 }

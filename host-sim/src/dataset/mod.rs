@@ -214,13 +214,14 @@ impl Dataset {
             let missing = skipped.iter().filter(|s| s.reason == SkipReason::Missing).count();
             let reason = format!(
                 "{} colour and {} depth images on disk ({missing} listed but missing), {} \
-                 associated within {} s, skip_frames {}, max_frames {:?}",
+                 associated within {} s, {} skipped at the start (--skip-frames), {} kept \
+                 (--max-frames)",
                 rgb_present.len(),
                 depth_present.len(),
                 associated,
                 opts.max_dt_s,
                 opts.skip_frames,
-                opts.max_frames,
+                opts.max_frames.map_or("all".to_owned(), |n| format!("at most {n}")),
             );
             return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
         }
