@@ -83,7 +83,10 @@ fn missing_dataset_and_bad_calibration_exit_non_zero() {
     let out = tempfile::tempdir().unwrap();
     let run = sim(&["replay", "/nonexistent/dataset", "--out", out.path().to_str().unwrap()]);
     assert_eq!(run.status.code(), Some(1));
-    assert!(stderr(&run).contains("/nonexistent/dataset"), "{}", stderr(&run));
+    let msg = stderr(&run);
+    assert!(msg.contains("/nonexistent/dataset"), "{msg}");
+    // The operating system's reason, once (it is both in the message and its source).
+    assert_eq!(msg.matches("os error").count(), 1, "{msg}");
 
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
@@ -122,6 +125,24 @@ fn demo_rejects_bad_options_and_usage_errors_exit_2() {
     assert_eq!(run.status.code(), Some(1));
     assert!(stderr(&run).contains("frames"), "{}", stderr(&run));
     assert_eq!(sim(&["no-such-command"]).status.code(), Some(2));
+}
+
+#[test]
+fn a_run_too_short_to_evaluate_keeps_its_outputs() {
+    let out = tempfile::tempdir().unwrap();
+    // Two poses cannot be aligned with the ground truth (three are needed): the run still
+    // succeeds and writes everything, and the report says why it has no ATE.
+    let run = sim(&["demo", "--frames", "2", "--out", out.path().to_str().unwrap()]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("ATE RMSE n/a (only 2 matched poses"), "{stdout}");
+    let trajectory = std::fs::read_to_string(out.path().join("CameraTrajectory.txt")).unwrap();
+    assert_eq!(trajectory.lines().count(), 2);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
+    assert!(report["ate_rmse_m"].is_null());
+    let why = report["evaluation_error"].as_str().unwrap();
+    assert!(why.contains("at least 3"), "{why}");
 }
 
 #[test]

@@ -369,6 +369,33 @@ pub(crate) fn frame_figures(timestamp_s: f64, r: &FrameResult) -> OdometryFrame 
     }
 }
 
+/// That `frame` and `cam` have one size that a front end of `W x H` pixels holds, with every size
+/// named when not: the core's error names only the gray image's (a frame larger than the
+/// profile's, e.g. a 1280 x 960 sensor halved once for QVGA, or a camera of another size).
+///
+/// # Errors
+/// The sizes, when they differ or exceed `W x H`.
+pub fn check_fits<const W: usize, const H: usize>(
+    frame: &RgbdFrame<'_>,
+    cam: &PinholeCamera,
+) -> Result<()> {
+    let (gray, depth, camera) =
+        (frame.gray.size(), frame.depth.size(), (cam.width(), cam.height()));
+    if gray == depth && gray == camera && gray.0 <= W && gray.1 <= H {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "gray image {}x{}, depth covering {}x{}, camera {}x{}: the three must have one size, at \
+         most the {W}x{H} that the front end holds",
+        gray.0,
+        gray.1,
+        depth.0,
+        depth.1,
+        camera.0,
+        camera.1
+    )
+}
+
 fn odometry_with<const W: usize, const H: usize, S>(
     source: &mut S,
     expected: usize,
@@ -384,6 +411,7 @@ where
     let mut map: Box<BoardMap> = Box::default();
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = run_with(source, expected, |frame| {
+        check_fits::<W, H>(frame, cam)?;
         let r = frontend.process(frame, cam, &mut map)?;
         let pose = StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() };
         camera.push(pose);
@@ -426,4 +454,46 @@ pub fn median(values: impl IntoIterator<Item = f64>) -> f64 {
     let mut v: Vec<f64> = values.into_iter().collect();
     v.sort_by(f64::total_cmp);
     median_of_sorted(&v).unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(width: usize, height: usize, depth_level: u8) -> OwnedFrame {
+        let (dw, dh) = (width >> depth_level, height >> depth_level);
+        OwnedFrame {
+            timestamp_s: 0.0,
+            width,
+            height,
+            gray: vec![0; width * height],
+            depth: vec![0; dw * dh],
+            depth_level,
+            depth_scale: 5000.0,
+        }
+    }
+
+    fn camera(width: usize, height: usize) -> PinholeCamera {
+        let (w, h) = (width as f32, height as f32);
+        PinholeCamera::new(w, w, (w - 1.0) / 2.0, (h - 1.0) / 2.0, width, height).unwrap()
+    }
+
+    #[test]
+    fn frames_that_do_not_fit_the_front_end_name_every_size() {
+        let fits =
+            |f: &OwnedFrame, c: &PinholeCamera| check_fits::<320, 240>(&f.view().unwrap(), c);
+        assert!(fits(&frame(320, 240, 1), &camera(320, 240)).is_ok());
+        assert!(fits(&frame(160, 120, 0), &camera(160, 120)).is_ok(), "smaller frames fit");
+        let e = fits(&frame(640, 480, 1), &camera(640, 480)).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "gray image 640x480, depth covering 640x480, camera 640x480: the three must have one \
+             size, at most the 320x240 that the front end holds"
+        );
+        // An odd height at depth level 1: the depth covers one row fewer.
+        let e = fits(&frame(4, 3, 1), &camera(4, 3)).unwrap_err().to_string();
+        assert!(e.starts_with("gray image 4x3, depth covering 4x2, camera 4x3"), "{e}");
+        let e = fits(&frame(320, 240, 1), &camera(160, 120)).unwrap_err().to_string();
+        assert!(e.contains("camera 160x120"), "{e}");
+    }
 }

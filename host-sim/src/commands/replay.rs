@@ -217,7 +217,11 @@ pub fn with_depth_level(note: String, depth_level: u8) -> String {
 
 /// The one-line summary of an odometry run.
 pub fn summary(report: &Report, wall_s: f64) -> String {
-    let ate = report.ate_rmse_m.map_or("n/a (no ground truth)".to_owned(), |a| format!("{a:.4} m"));
+    let ate = match (report.ate_rmse_m, &report.evaluation_error) {
+        (Some(a), _) => format!("{a:.4} m"),
+        (None, Some(why)) => format!("n/a ({why})"),
+        (None, None) => "n/a (no ground truth)".to_owned(),
+    };
     format!(
         "{} ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
          {:.1} s wall ({:.1} ms median per frame in the core); core state {} bytes",

@@ -46,8 +46,14 @@ pub struct Report {
     pub lost_frames: usize,
     /// Keyframes made (0 in data-path mode).
     pub keyframes: usize,
-    /// ATE RMSE of CameraTrajectory.txt against ground truth, metres; null without one of them.
+    /// ATE RMSE of CameraTrajectory.txt against ground truth, metres; null without one of them
+    /// or when they cannot be compared (`evaluation_error` says why).
     pub ate_rmse_m: Option<f64>,
+    /// Why the trajectory was not evaluated although there is ground truth (e.g. fewer than three
+    /// poses matched it in time, or the poses lie on a line and do not fix the alignment); absent
+    /// when it was evaluated or there is no ground truth. The run's outputs are written anyway.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub evaluation_error: Option<String>,
     /// RPE translation per second of CameraTrajectory.txt, metres per second; null without it.
     pub rpe_trans_m_per_s: Option<f64>,
     /// Bytes of SLAM state the core holds (`size_of` the front end; 0 in data-path mode).
@@ -95,6 +101,7 @@ impl Report {
             lost_frames: 0,
             keyframes: 0,
             ate_rmse_m: None,
+            evaluation_error: None,
             rpe_trans_m_per_s: None,
             state_bytes: 0,
             output_sha256: None,
@@ -136,6 +143,7 @@ impl Report {
             lost_frames: run.lost_frames,
             keyframes: run.keyframes.len(),
             ate_rmse_m: evaluation.map(|e| e.ate.rmse),
+            evaluation_error: None,
             rpe_trans_m_per_s: evaluation.and_then(|e| e.rpe_per_second.map(|r| r.trans.rmse)),
             state_bytes: run.state_bytes,
             output_sha256: Some(sha256),
@@ -166,11 +174,20 @@ pub struct OdometryOutputs {
     pub evaluation: Option<EvalReport>,
 }
 
+/// `estimate` evaluated against `gt` as evo does; `Ok(None)` for an empty estimate.
+fn evaluate(gt: &Trajectory, estimate: &Trajectory) -> Result<Option<EvalReport>, eval::EvalError> {
+    if estimate.is_empty() {
+        return Ok(None);
+    }
+    eval::evaluate(gt, estimate, eval::DEFAULT_MAX_DT_S).map(Some)
+}
+
 /// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
 /// `trajectory.svg` and `ate.svg` into `dir`.
 ///
 /// # Errors
-/// A file that cannot be written; an evaluation error (e.g. no estimated pose near a ground-truth one).
+/// A file that cannot be written. A trajectory that cannot be evaluated (e.g. no estimated pose
+/// near a ground-truth one) is not an error: its report has no ATE and says why.
 pub fn write_odometry(
     dir: &Path,
     run: &OdometryRun,
@@ -187,23 +204,24 @@ pub fn write_odometry(
     run.keyframes.write_tum(&dir.join("KeyFrameTrajectory.txt"))?;
     let sha256: String =
         sha2::Sha256::digest(camera_text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect();
-    let evaluation = match gt.filter(|g| !g.is_empty()) {
-        Some(gt) if !run.camera.is_empty() => {
-            Some(eval::evaluate(gt, &run.camera, eval::DEFAULT_MAX_DT_S)?)
-        }
-        _ => None,
+    let gt = gt.filter(|g| !g.is_empty());
+    // A trajectory that cannot be compared with the ground truth (too short, degenerate) is
+    // still the run's output: it is written, and the report says why it has no ATE.
+    let (evaluation, evaluation_error) = match gt.map(|gt| evaluate(gt, &run.camera)) {
+        Some(Err(e)) => (None, Some(e.to_string())),
+        Some(Ok(e)) => (e, None),
+        None => (None, None),
     };
     if let Some(e) = &evaluation {
         plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
     }
-    let online_ate = match gt.filter(|g| !g.is_empty()) {
-        Some(gt) if !run.online.is_empty() => {
-            Some(eval::evaluate(gt, &run.online, eval::DEFAULT_MAX_DT_S)?.ate.rmse)
-        }
+    let online_ate = match gt.map(|gt| evaluate(gt, &run.online)) {
+        Some(Ok(e)) => e.map(|e| e.ate.rmse),
         _ => None,
     };
-    let report =
+    let mut report =
         Report::odometry(run, profile, skipped, note, evaluation.as_ref(), online_ate, sha256);
+    report.evaluation_error = evaluation_error;
     report.write(dir)?;
     Ok(OdometryOutputs { report, evaluation })
 }

@@ -18,7 +18,7 @@ use ferroslam_core::map::{BoardMap, KeyFrameId};
 use ferroslam_core::system::Slam;
 use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams};
 
-use super::datapath::{BackendReport, OdometryRun, frame_figures, run_with};
+use super::datapath::{BackendReport, OdometryRun, check_fits, frame_figures, run_with};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
@@ -230,6 +230,7 @@ where
         owed: false,
     };
     let data = run_with(source, expected, |frame| {
+        check_fits::<W, H>(frame, cam)?;
         let r = stepper.step_then_track(frame)?;
         online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
         per_frame.push(frame_figures(frame.timestamp_s, &r));
