@@ -8,6 +8,7 @@ use std::io;
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::wire::{
     self, DecoderStats, FrameError, MAX_FRAME_ON_WIRE, Message, PoseMessage, StreamDecoder,
+    TrackingState,
 };
 
 use crate::trajectory::{StampedPose, format_tum_line};
@@ -59,7 +60,9 @@ pub fn stamped_pose(p: &PoseMessage) -> StampedPose {
 }
 
 /// A [`TelemetrySink`] writing each pose as a TUM trajectory line (`timestamp tx ty tz qx qy qz
-/// qw`); other messages are not trajectory data and are skipped.
+/// qw`); other messages are not trajectory data and are skipped, and so are the poses of frames
+/// before the first keyframe (state `Initializing`: no world frame yet, the pose is a
+/// placeholder), as in `ferroslam-sim`'s CameraTrajectory.txt.
 #[derive(Debug)]
 pub struct TumPoseWriter<W> {
     out: W,
@@ -81,7 +84,9 @@ impl<W: io::Write> TelemetrySink for TumPoseWriter<W> {
     type Error = io::Error;
 
     fn send(&mut self, message: &Message) -> Result<(), io::Error> {
-        if let Message::Pose(p) = message {
+        if let Message::Pose(p) = message
+            && p.state != TrackingState::Initializing
+        {
             writeln!(self.out, "{}", format_tum_line(&stamped_pose(p)))?;
         }
         Ok(())
@@ -120,7 +125,7 @@ impl<W: io::Write> TelemetrySink for WireWriter<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ferroslam_core::wire::{FaultCode, FaultMessage, PoseFlags, TrackingState};
+    use ferroslam_core::wire::{FaultCode, FaultMessage, PoseFlags};
 
     fn pose(i: u32) -> PoseMessage {
         PoseMessage {
@@ -161,5 +166,16 @@ mod tests {
             "10.000000 0.5000000 -1.2500000 2.0000000 0.0000000 0.0000000 0.0000000 1.0000000\n\
              12.000000 0.5000000 -1.2500000 2.0000000 0.0000000 0.0000000 0.0000000 1.0000000\n"
         );
+    }
+
+    #[test]
+    fn poses_before_the_first_keyframe_are_not_trajectory_lines() {
+        let waiting = PoseMessage { state: TrackingState::Initializing, ..pose(0) };
+        let mut tum = TumPoseWriter::new(Vec::new());
+        for m in [Message::Pose(waiting), Message::Pose(pose(1))] {
+            tum.send(&m).unwrap();
+        }
+        let text = String::from_utf8(tum.into_inner()).unwrap();
+        assert!(text.starts_with("11.000000 ") && text.lines().count() == 1, "{text}");
     }
 }

@@ -146,6 +146,30 @@ fn a_run_too_short_to_evaluate_keeps_its_outputs() {
 }
 
 #[test]
+fn frames_before_the_first_keyframe_have_no_pose() {
+    let out = tempfile::tempdir().unwrap();
+    // With 90% of the depth removed (18.6% of the pixels keep a reading) the front end finds too
+    // few features with depth for a first keyframe in these three frames.
+    let dir = out.path().to_str().unwrap();
+    let run = sim(&["demo", "--frames", "3", "--holes", "0.9", "--out", dir]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
+    let states: Vec<&str> = report["odometry"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["state"].as_str().unwrap())
+        .collect();
+    assert_eq!(states, ["initializing"; 3], "the premise: no first keyframe");
+    // No made-up pose (the identity) is written for them, and the report says why there is no ATE.
+    let trajectory = std::fs::read_to_string(out.path().join("CameraTrajectory.txt")).unwrap();
+    assert_eq!(trajectory.lines().count(), 0, "{trajectory}");
+    let why = report["evaluation_error"].as_str().unwrap();
+    assert!(why.contains("never made its first keyframe"), "{why}");
+}
+
+#[test]
 fn short_demo_runs_end_to_end() {
     let out = tempfile::tempdir().unwrap();
     // The data-path mode (odometry, the default, is tested in tests/odometry.rs).

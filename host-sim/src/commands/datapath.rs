@@ -259,9 +259,12 @@ pub struct OdometryRun {
     pub data: DataPathRun,
     /// The trajectory written to CameraTrajectory.txt: in odometry mode each frame's pose as
     /// tracked; in SLAM mode each frame's pose relative to its reference keyframe, composed with
-    /// that keyframe's final (bundle-adjusted) pose.
+    /// that keyframe's final (bundle-adjusted) pose. Frames before the first keyframe (state
+    /// `initializing`: no world frame yet) have no pose and are left out, as ORB-SLAM leaves them
+    /// out; they are in `per_frame`.
     pub camera: Trajectory,
-    /// Each frame's pose as the front end output it at that frame (what the firmware sends).
+    /// Each frame's pose as the front end output it at that frame (what the firmware sends),
+    /// from the first keyframe on.
     pub online: Trajectory,
     /// Camera-to-world pose of every keyframe (SLAM: final; odometry: when it was made).
     pub keyframes: Trajectory,
@@ -413,12 +416,16 @@ where
     let data = run_with(source, expected, |frame| {
         check_fits::<W, H>(frame, cam)?;
         let r = frontend.process(frame, cam, &mut map)?;
+        per_frame.push(frame_figures(frame.timestamp_s, &r));
+        if r.state == FrontendState::Initializing {
+            // No pose before the first keyframe, which defines the world frame.
+            return Ok(());
+        }
         let pose = StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() };
         camera.push(pose);
         if r.keyframe.is_some() {
             keyframes.push(pose);
         }
-        per_frame.push(frame_figures(frame.timestamp_s, &r));
         Ok(())
     })?;
     let stats = frontend.stats();

@@ -209,6 +209,11 @@ pub fn write_odometry(
     // still the run's output: it is written, and the report says why it has no ATE.
     let (evaluation, evaluation_error) = match gt.map(|gt| evaluate(gt, &run.camera)) {
         Some(Err(e)) => (None, Some(e.to_string())),
+        Some(Ok(None)) => {
+            let why = "no frame has a pose: the front end never made its first keyframe, for \
+                       want of texture or depth";
+            (None, Some(why.to_owned()))
+        }
         Some(Ok(e)) => (e, None),
         None => (None, None),
     };

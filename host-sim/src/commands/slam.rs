@@ -16,7 +16,7 @@ use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::map::{BoardMap, KeyFrameId};
 use ferroslam_core::system::Slam;
-use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams};
+use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState};
 
 use super::datapath::{BackendReport, OdometryRun, check_fits, frame_figures, run_with};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -232,8 +232,12 @@ where
     let data = run_with(source, expected, |frame| {
         check_fits::<W, H>(frame, cam)?;
         let r = stepper.step_then_track(frame)?;
-        online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
         per_frame.push(frame_figures(frame.timestamp_s, &r));
+        if r.state == FrontendState::Initializing {
+            // No pose before the first keyframe, which defines the world frame.
+            return Ok(());
+        }
+        online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
         let map = stepper.slam.map();
         let reference = r.reference_keyframe.and_then(|k| map.keyframe(k).map(|kf| (k, kf.t_wc)));
         relative.push(match reference {
