@@ -127,19 +127,29 @@ fn demo_rejects_bad_options_and_usage_errors_exit_2() {
     assert_eq!(sim(&["no-such-command"]).status.code(), Some(2));
 }
 
+/// `demo ARGS` into a new folder, which must succeed: the run, its report.json and its
+/// CameraTrajectory.txt.
+fn demo_outputs(args: &[&str]) -> (Output, serde_json::Value, String) {
+    let out = tempfile::tempdir().unwrap();
+    let mut all = vec!["demo"];
+    all.extend_from_slice(args);
+    all.extend(["--out", out.path().to_str().unwrap()]);
+    let run = sim(&all);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let read = |name: &str| std::fs::read(out.path().join(name)).unwrap();
+    let report = serde_json::from_slice(&read("report.json")).unwrap();
+    let trajectory = String::from_utf8(read("CameraTrajectory.txt")).unwrap();
+    (run, report, trajectory)
+}
+
 #[test]
 fn a_run_too_short_to_evaluate_keeps_its_outputs() {
-    let out = tempfile::tempdir().unwrap();
     // Two poses cannot be aligned with the ground truth (three are needed): the run still
     // succeeds and writes everything, and the report says why it has no ATE.
-    let run = sim(&["demo", "--frames", "2", "--out", out.path().to_str().unwrap()]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    let (run, report, trajectory) = demo_outputs(&["--frames", "2"]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains("ATE RMSE n/a (only 2 matched poses"), "{stdout}");
-    let trajectory = std::fs::read_to_string(out.path().join("CameraTrajectory.txt")).unwrap();
     assert_eq!(trajectory.lines().count(), 2);
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
     assert!(report["ate_rmse_m"].is_null());
     let why = report["evaluation_error"].as_str().unwrap();
     assert!(why.contains("at least 3"), "{why}");
@@ -147,23 +157,13 @@ fn a_run_too_short_to_evaluate_keeps_its_outputs() {
 
 #[test]
 fn frames_before_the_first_keyframe_have_no_pose() {
-    let out = tempfile::tempdir().unwrap();
     // With 90% of the depth removed (18.6% of the pixels keep a reading) the front end finds too
     // few features with depth for a first keyframe in these three frames.
-    let dir = out.path().to_str().unwrap();
-    let run = sim(&["demo", "--frames", "3", "--holes", "0.9", "--out", dir]);
-    assert!(run.status.success(), "{}", stderr(&run));
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
-    let states: Vec<&str> = report["odometry"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f["state"].as_str().unwrap())
-        .collect();
+    let (_, report, trajectory) = demo_outputs(&["--frames", "3", "--holes", "0.9"]);
+    let frames = report["odometry"].as_array().unwrap();
+    let states: Vec<&str> = frames.iter().map(|f| f["state"].as_str().unwrap()).collect();
     assert_eq!(states, ["initializing"; 3], "the premise: no first keyframe");
     // No made-up pose (the identity) is written for them, and the report says why there is no ATE.
-    let trajectory = std::fs::read_to_string(out.path().join("CameraTrajectory.txt")).unwrap();
     assert_eq!(trajectory.lines().count(), 0, "{trajectory}");
     let why = report["evaluation_error"].as_str().unwrap();
     assert!(why.contains("never made its first keyframe"), "{why}");
