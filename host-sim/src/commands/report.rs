@@ -174,14 +174,6 @@ pub struct OdometryOutputs {
     pub evaluation: Option<EvalReport>,
 }
 
-/// `estimate` evaluated against `gt` as evo does; `Ok(None)` for an empty estimate.
-fn evaluate(gt: &Trajectory, estimate: &Trajectory) -> Result<Option<EvalReport>, eval::EvalError> {
-    if estimate.is_empty() {
-        return Ok(None);
-    }
-    eval::evaluate(gt, estimate, eval::DEFAULT_MAX_DT_S).map(Some)
-}
-
 /// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
 /// `trajectory.svg` and `ate.svg` into `dir`.
 ///
@@ -205,25 +197,26 @@ pub fn write_odometry(
     let sha256: String =
         sha2::Sha256::digest(camera_text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect();
     let gt = gt.filter(|g| !g.is_empty());
+    let evaluate = |gt, estimate| eval::evaluate(gt, estimate, eval::DEFAULT_MAX_DT_S);
     // A trajectory that cannot be compared with the ground truth (too short, degenerate) is
     // still the run's output: it is written, and the report says why it has no ATE.
-    let (evaluation, evaluation_error) = match gt.map(|gt| evaluate(gt, &run.camera)) {
-        Some(Err(e)) => (None, Some(e.to_string())),
-        Some(Ok(None)) => {
+    let (evaluation, evaluation_error) = match gt {
+        None => (None, None),
+        Some(_) if run.camera.is_empty() => {
             let why = "no frame has a pose: the front end never made its first keyframe, for \
                        want of texture or depth";
             (None, Some(why.to_owned()))
         }
-        Some(Ok(e)) => (e, None),
-        None => (None, None),
+        Some(gt) => match evaluate(gt, &run.camera) {
+            Ok(e) => (Some(e), None),
+            Err(e) => (None, Some(e.to_string())),
+        },
     };
     if let Some(e) = &evaluation {
         plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
     }
-    let online_ate = match gt.map(|gt| evaluate(gt, &run.online)) {
-        Some(Ok(e)) => e.map(|e| e.ate.rmse),
-        _ => None,
-    };
+    // An online trajectory that cannot be evaluated (e.g. empty) has no ATE either.
+    let online_ate = gt.and_then(|gt| evaluate(gt, &run.online).ok()).map(|e| e.ate.rmse);
     let mut report =
         Report::odometry(run, profile, skipped, note, evaluation.as_ref(), online_ate, sha256);
     report.evaluation_error = evaluation_error;
