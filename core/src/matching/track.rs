@@ -497,10 +497,8 @@ fn track_fixed<const N: usize, const S: usize>(
     params: &TrackParams,
 ) -> Result<PatchTrack, MatchError> {
     let Workspace { window, quantized, columns } = ws;
-    let mut template = Template::<N, S>::EMPTY;
-    let t = &mut template;
-    let mut sd = Steepest::EMPTY;
-    let steepest = &mut sd;
+    let mut t = Template::<N, S>::EMPTY;
+    let mut steepest = Steepest::EMPTY;
     if !t.warp(template_img, centre, a_inv, window) {
         return Err(MatchError::TemplateOutOfImage);
     }
@@ -512,14 +510,14 @@ fn track_fixed<const N: usize, const S: usize>(
         // No search: Lucas-Kanade from the sub-pixel prediction itself.
         predicted
     } else {
-        let ((x, y), best) = search(t, (quantized, columns), target, predicted, params)?;
+        let ((x, y), best) = search(&t, (quantized, columns), target, predicted, params)?;
         if best < params.min_zncc - HOPELESS_MARGIN {
             return Err(MatchError::LowCorrelation { zncc: best });
         }
         // Pixel coordinates are far below 2^24: exact in f32.
         (x as f32, y as f32)
     };
-    let (uv, zncc) = refine(t, steepest, target, start, params)?;
+    let (uv, zncc) = refine(&t, &mut steepest, target, start, params)?;
     if zncc.is_nan() || zncc < params.min_zncc {
         return Err(MatchError::LowCorrelation { zncc });
     }
