@@ -12,10 +12,14 @@
 //! assert_eq!(slam.map().num_keyframes(), 0);
 //! ```
 
-use crate::backend::{Backend, BackendError, BackendParams, BackendStatus};
+use crate::backend::{
+    BA_OBSERVATIONS, BA_POINTS, BA_RIGS, Backend, BackendError, BackendParams, BackendStatus,
+    HOST_BA_OBSERVATIONS, HOST_BA_POINTS, HOST_BA_RIGS, HOST_MAX_KEYFRAMES, HOST_MAX_LANDMARKS,
+};
+use crate::config::capacity;
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
-use crate::map::BoardMap;
+use crate::map::Map;
 use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams};
 
 /// Back-end work units per frame in deterministic replay and on the board: at about 400 host
@@ -38,27 +42,71 @@ pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 pub type QvgaSlam = Slam<320, 240>;
 /// SLAM at the VGA profile (640 x 480).
 pub type VgaSlam = Slam<640, 480>;
+/// SLAM with the host-scale map and back end ([`crate::map::HostMap`],
+/// [`crate::backend::HostBackend`]) at a `W` x `H` profile: for the host simulator (about 1.6 MB
+/// at QVGA).
+pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
+    W,
+    H,
+    HOST_MAX_KEYFRAMES,
+    HOST_MAX_LANDMARKS,
+    { HOST_MAX_LANDMARKS / 32 },
+    HOST_BA_RIGS,
+    HOST_BA_POINTS,
+    HOST_BA_OBSERVATIONS,
+>;
 
 /// The front end's parameters in SLAM mode: [`FrontendParams::DEFAULT`] without depth fusion
 /// (bundle adjustment refines landmark positions instead).
 pub const SLAM_FRONTEND: FrontendParams =
     FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 
-/// The front end, the map and the back end (see the module documentation).
+/// The front end at `W` x `H`, the map and the back end (see the module documentation). The
+/// other parameters size the map and the back end as [`Backend`] says; their defaults are the
+/// board's.
 #[derive(Debug)]
-pub struct Slam<const W: usize, const H: usize> {
+pub struct Slam<
+    const W: usize,
+    const H: usize,
+    const K: usize = { capacity::MAX_KEYFRAMES },
+    const L: usize = { capacity::MAX_LANDMARKS },
+    const LW: usize = { capacity::MAX_LANDMARKS / 32 },
+    const R: usize = BA_RIGS,
+    const P: usize = BA_POINTS,
+    const O: usize = BA_OBSERVATIONS,
+> {
     frontend: Frontend<W, H>,
-    map: BoardMap,
-    backend: Backend,
+    map: Map<K, L>,
+    backend: Backend<K, L, LW, R, P, O>,
 }
 
-impl<const W: usize, const H: usize> Default for Slam<W, H> {
+impl<
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Default for Slam<W, H, K, L, LW, R, P, O>
+{
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const W: usize, const H: usize> Slam<W, H> {
+impl<
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Slam<W, H, K, L, LW, R, P, O>
+{
     /// A system with [`SLAM_FRONTEND`] and [`BackendParams::DEFAULT`] (`const`, for a
     /// `static`).
     pub const fn new() -> Self {
@@ -69,7 +117,7 @@ impl<const W: usize, const H: usize> Slam<W, H> {
     pub const fn with_params(frontend: FrontendParams, backend: BackendParams) -> Self {
         Self {
             frontend: Frontend::with_params(frontend),
-            map: BoardMap::new(),
+            map: Map::new(),
             backend: Backend::with_params(backend),
         }
     }
@@ -104,7 +152,10 @@ impl<const W: usize, const H: usize> Slam<W, H> {
     /// [`Frontend::process`] tracks the next frame into the map, then calls [`Self::hand_over`]
     /// and, when the solve finished, [`Backend::finish_solve`] (see `ferroslam-sim`'s SLAM
     /// replay for a schedule that keeps the sequential result bit for bit).
-    pub fn parts_mut(&mut self) -> (&mut Frontend<W, H>, &mut BoardMap, &mut Backend) {
+    #[allow(clippy::type_complexity)]
+    pub fn parts_mut(
+        &mut self,
+    ) -> (&mut Frontend<W, H>, &mut Map<K, L>, &mut Backend<K, L, LW, R, P, O>) {
         (&mut self.frontend, &mut self.map, &mut self.backend)
     }
 
@@ -121,7 +172,7 @@ impl<const W: usize, const H: usize> Slam<W, H> {
     }
 
     /// The map.
-    pub fn map(&self) -> &BoardMap {
+    pub fn map(&self) -> &Map<K, L> {
         &self.map
     }
 
@@ -131,7 +182,7 @@ impl<const W: usize, const H: usize> Slam<W, H> {
     }
 
     /// The back end.
-    pub fn backend(&self) -> &Backend {
+    pub fn backend(&self) -> &Backend<K, L, LW, R, P, O> {
         &self.backend
     }
 }

@@ -262,3 +262,17 @@ fn decode_serial_rejects_unreadable_and_foreign_input() {
     );
     assert!(!msg.contains("panicked"), "{msg}");
 }
+
+#[test]
+fn the_host_scale_map_matches_the_board_map_while_both_have_room() {
+    // Sixty frames make fewer keyframes than the board's map holds (32), so nothing is retired
+    // and the two capacities must give the same trajectory bits; only the sizes differ.
+    let (_, board, board_trajectory) = demo_outputs(&["--frames", "60"]);
+    let (_, host, host_trajectory) = demo_outputs(&["--frames", "60", "--map", "host"]);
+    assert_eq!(board["backend"]["map_scale"], "board");
+    assert_eq!(host["backend"]["map_scale"], "host");
+    let keyframes = host["backend"]["map_keyframes_max"].as_u64().unwrap();
+    assert!((1..32).contains(&keyframes), "{keyframes} keyframes: the board's map has room");
+    assert_eq!(board_trajectory, host_trajectory);
+    assert!(host["state_bytes"].as_u64().unwrap() > board["state_bytes"].as_u64().unwrap());
+}

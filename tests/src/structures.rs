@@ -9,6 +9,8 @@ use std::mem::size_of;
 
 use ferroslam_core::backend::{
     BA_CAMERAS, BA_OBSERVATIONS, BA_POINTS, BA_RIGS, Backend, BoardBundleAdjuster,
+    HOST_BA_OBSERVATIONS, HOST_BA_POINTS, HOST_BA_RIGS, HOST_MAX_KEYFRAMES, HOST_MAX_LANDMARKS,
+    HostBackend,
 };
 use ferroslam_core::config::capacity::{
     MAX_FEATURES_PER_FRAME, MAX_KEYFRAMES, MAX_LANDMARKS, MAX_OBSERVATIONS_PER_KEYFRAME,
@@ -21,8 +23,8 @@ use ferroslam_core::features::{Feature, FeatureVec, QvgaHessianDetector, VgaHess
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
-use ferroslam_core::map::{BoardMap, KeyFrame, Landmark, Observation};
-use ferroslam_core::system::{QvgaSlam, VgaSlam};
+use ferroslam_core::map::{BoardMap, HostMap, KeyFrame, Landmark, Observation};
+use ferroslam_core::system::{HostScaleSlam, QvgaSlam, VgaSlam};
 use ferroslam_core::tracking::sbi::SmallImage;
 use ferroslam_core::tracking::{
     BoardLocalMap, InlierMask, MotionModel, PoseEstimate, QvgaFrontend, TrackedLandmark,
@@ -127,6 +129,25 @@ pub fn core_structures() -> Vec<Structure> {
         row::<Backend>("backend::Backend", "the BA workspace + the window and segment bookkeeping"),
         row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end"),
         row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
+        row::<HostMap>(
+            "map::HostMap",
+            format!(
+                "host only: `HOST_MAX_KEYFRAMES` = {HOST_MAX_KEYFRAMES} keyframes, \
+                 `HOST_MAX_LANDMARKS` = {HOST_MAX_LANDMARKS} landmarks"
+            ),
+        ),
+        row::<HostBackend>(
+            "backend::HostBackend",
+            format!(
+                "host only: a BA workspace of {HOST_BA_RIGS} rigs, {HOST_MAX_KEYFRAMES} cameras, \
+                 {HOST_BA_POINTS} points, {HOST_BA_OBSERVATIONS} observations, and the \
+                 bookkeeping"
+            ),
+        ),
+        row::<HostScaleSlam<320, 240>>(
+            "system::HostScaleSlam<320, 240>",
+            "host only: QVGA front end + `HostMap` + `HostBackend`",
+        ),
     ]
 }
 

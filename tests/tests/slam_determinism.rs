@@ -7,7 +7,7 @@
 use ferroslam_core::config::QVGA;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
-use ferroslam_sim::commands::datapath::{OdometryRun, Schedule, TrackMode, run_odometry};
+use ferroslam_sim::commands::datapath::{MapScale, OdometryRun, Schedule, TrackMode, run_odometry};
 use ferroslam_sim::dataset::{Dataset, DatasetOptions};
 
 const FRAMES: usize = 120;
@@ -20,7 +20,14 @@ fn replay(quota: u32, schedule: Schedule) -> OdometryRun {
     let cam =
         PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize).unwrap();
     let mut reader = dataset.into_reader(4);
-    run_odometry(&mut reader, FRAMES, &cam, QVGA, TrackMode::Slam { quota, schedule }).unwrap()
+    run_odometry(
+        &mut reader,
+        FRAMES,
+        &cam,
+        QVGA,
+        TrackMode::Slam { quota, schedule, map: MapScale::Board },
+    )
+    .unwrap()
 }
 
 fn assert_same_bytes(a: &OdometryRun, b: &OdometryRun) {

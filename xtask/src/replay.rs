@@ -31,7 +31,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
-use ferroslam_sim::commands::datapath::{OdometryRun, Schedule, TrackMode, run_odometry};
+use ferroslam_sim::commands::datapath::{MapScale, OdometryRun, Schedule, TrackMode, run_odometry};
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
@@ -159,7 +159,11 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
-    let mode = TrackMode::Slam { quota: DEFAULT_BACKEND_QUOTA, schedule: Schedule::Threaded };
+    let mode = TrackMode::Slam {
+        quota: DEFAULT_BACKEND_QUOTA,
+        schedule: Schedule::Threaded,
+        map: MapScale::Board,
+    };
     let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;

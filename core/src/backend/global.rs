@@ -11,8 +11,7 @@
 
 use heapless::Vec;
 
-use super::{BA_CAMERAS, Backend};
-use crate::config::capacity;
+use super::Backend;
 use crate::geometry::Pose;
 use crate::map::{KeyFrameId, Map};
 use crate::optim::{BaError, RigId, VariableKind};
@@ -20,13 +19,18 @@ use crate::optim::{BaError, RigId, VariableKind};
 /// A segment present in the map: `(segment number, oldest keyframe's seq, that keyframe)`.
 type Segment = (u32, u32, KeyFrameId);
 
-impl Backend {
+impl<
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Backend<K, L, LW, R, P, O>
+{
     /// Builds the segmented global BA problem; returns the work units charged (observations
     /// scanned, four to a unit).
-    pub(super) fn build_global<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-    ) -> Result<u64, BaError> {
+    pub(super) fn build_global(&mut self, map: &Map<K, L>) -> Result<u64, BaError> {
         self.ba.clear();
         self.cameras.clear();
         self.points.clear();
@@ -34,7 +38,7 @@ impl Backend {
         self.scratch.reset();
         self.built_seq = self.newest_seq;
         let len = self.params.segment_keyframes.max(1);
-        let mut segments: Vec<Segment, BA_CAMERAS> = Vec::new();
+        let mut segments: Vec<Segment, K> = Vec::new();
         for (id, k) in map.keyframes() {
             let s = k.seq / len;
             match segments.iter_mut().find(|e| e.0 == s) {
@@ -48,17 +52,17 @@ impl Backend {
             }
         }
         segments.sort_unstable_by_key(|e| e.0);
-        let mut rigs: Vec<RigId, BA_CAMERAS> = Vec::new();
+        let mut rigs: Vec<RigId, K> = Vec::new();
         for (i, &(s, _, oldest)) in segments.iter().enumerate() {
             let Some(k) = map.keyframe(oldest) else { continue };
             let t_sw = k.t_wc.inverse();
             let rig = self.ba.add_rig(&t_sw, i == 0)?;
             if rigs.push(rig).is_err() || self.rig_before.push((s, t_sw)).is_err() {
-                return Err(BaError::Full { kind: VariableKind::Rig, capacity: BA_CAMERAS });
+                return Err(BaError::Full { kind: VariableKind::Rig, capacity: K });
             }
         }
         let mut scanned = 0u64;
-        let mut all: Vec<KeyFrameId, { capacity::MAX_KEYFRAMES }> = Vec::new();
+        let mut all: Vec<KeyFrameId, K> = Vec::new();
         for (id, k) in map.keyframes() {
             let Some(r) = segments.iter().position(|e| e.0 == k.seq / len) else { continue };
             let (Some(&rig), Some(&(_, t_sw))) = (rigs.get(r), self.rig_before.get(r)) else {
@@ -67,20 +71,18 @@ impl Backend {
             let t_cs = k.t_wc.inverse() * t_sw.inverse();
             let cam = self.ba.add_camera(rig, &t_cs)?;
             if self.cameras.push((id, cam, r > 0)).is_err() || all.push(id).is_err() {
-                return Err(BaError::Full { kind: VariableKind::Camera, capacity: BA_CAMERAS });
+                return Err(BaError::Full { kind: VariableKind::Camera, capacity: K });
             }
             // Segment index + 1 per landmark slot; a second segment marks the landmark joint.
             scanned += k.observations.len() as u64;
             for o in &k.observations {
                 let slot = o.landmark.0.index();
-                match self.scratch.first_segment.get(slot).copied() {
-                    // At most BA_CAMERAS (< 65,535) segments.
-                    Some(0) => {
-                        self.scratch.first_segment[slot & (capacity::MAX_LANDMARKS - 1)] =
-                            r as u16 + 1
-                    }
-                    Some(first) if usize::from(first) != r + 1 => self.mark_joint(slot),
-                    _ => {}
+                let Some(first) = self.scratch.first_segment.get_mut(slot) else { continue };
+                if *first == 0 {
+                    // At most K (< 65,535) segments.
+                    *first = r as u16 + 1;
+                } else if usize::from(*first) != r + 1 {
+                    self.mark_joint(slot);
                 }
             }
         }
@@ -93,11 +95,7 @@ impl Backend {
 
     /// Makes every live joint landmark a provisional point (up to capacity); returns the
     /// observations scanned.
-    fn choose_joint_points<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-        all: &[KeyFrameId],
-    ) -> u64 {
+    fn choose_joint_points(&mut self, map: &Map<K, L>, all: &[KeyFrameId]) -> u64 {
         let mut scanned = 0u64;
         for &id in all {
             let Some(k) = map.keyframe(id) else { continue };
@@ -112,7 +110,7 @@ impl Backend {
                     return scanned;
                 }
                 if let Some(p) = self.scratch.point_of.get_mut(slot) {
-                    // At most BA_POINTS (< 65,535) points.
+                    // At most P (< 65,535) points.
                     *p = self.points.len() as u16;
                 }
             }
@@ -126,10 +124,7 @@ impl Backend {
     /// (a landmark with its host's), or with the newest segment of the problem when theirs was
     /// not in it, so that the map the front end tracks stays one rigid piece with the segment
     /// it grew from.
-    pub(super) fn write_back_global<const K: usize, const L: usize>(
-        &mut self,
-        map: &mut Map<K, L>,
-    ) {
+    pub(super) fn write_back_global(&mut self, map: &mut Map<K, L>) {
         for &(kf, cam, free) in &self.cameras {
             let (true, Some(t_cw)) = (free, self.ba.camera_pose(cam)) else { continue };
             if let Some(k) = map.keyframe_mut(kf) {
@@ -137,7 +132,7 @@ impl Backend {
             }
         }
         // Each segment's correction, old world to new world: `T_s'^-1 T_s`.
-        let mut delta: Vec<Pose, BA_CAMERAS> = Vec::new();
+        let mut delta: Vec<Pose, K> = Vec::new();
         for (r, &(_, t_sw)) in self.rig_before.iter().enumerate() {
             let rig = self
                 .cameras
@@ -152,11 +147,11 @@ impl Backend {
         let rig_of_new = |seq: u32| -> u16 {
             let s = seq / len;
             let r = self.rig_before.iter().position(|e| e.0 == s);
-            // At most BA_CAMERAS (< 65,535) rigs.
+            // At most K (< 65,535) rigs.
             r.map_or(self.rig_before.len(), |r| r + 1) as u16
         };
         // New keyframes (not cameras of the problem).
-        let mut new_keyframes: Vec<(KeyFrameId, u16), { capacity::MAX_KEYFRAMES }> = Vec::new();
+        let mut new_keyframes: Vec<(KeyFrameId, u16), K> = Vec::new();
         for (id, k) in map.keyframes() {
             if k.seq > built && !self.cameras.iter().any(|c| c.0 == id) {
                 let _ = new_keyframes.push((id, rig_of_new(k.seq)));
@@ -190,7 +185,7 @@ impl Backend {
                 *f = rig;
             }
         }
-        for i in 0..L.min(capacity::MAX_LANDMARKS) {
+        for i in 0..L {
             let seg = self.scratch.first_segment.get(i).copied().unwrap_or(0);
             let Some(d) = seg.checked_sub(1).and_then(|r| delta.get(usize::from(r))) else {
                 continue;

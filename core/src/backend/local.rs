@@ -20,7 +20,7 @@
 
 use heapless::Vec;
 
-use super::{BA_OBSERVATIONS, BA_POINTS, BA_RIGS, Backend};
+use super::Backend;
 use crate::config::capacity;
 use crate::map::{KeyFrameId, Map};
 use crate::optim::{BaError, VariableKind};
@@ -33,30 +33,30 @@ const IN_WINDOW: u16 = u16::MAX;
 /// Marks a fixed neighbour (before cameras are numbered).
 const FIXED: u16 = u16::MAX - 1;
 
-/// The back end's fixed scratch, indexed by arena slot (maps up to the board's capacities; a
-/// larger map's extra slots are ignored).
+/// The back end's fixed scratch, indexed by arena slot of a map of `K` keyframes and `L`
+/// landmarks (`LW` words of bits cover the `L` slots), for an adjuster of `P` points.
 #[derive(Debug)]
-pub(super) struct Scratch {
+pub(super) struct Scratch<const K: usize, const L: usize, const LW: usize, const P: usize> {
     /// Landmark slot: problem point index + 1 (0: not in the problem).
-    pub(super) point_of: [u16; capacity::MAX_LANDMARKS],
+    pub(super) point_of: [u16; L],
     /// Per point: observations counted, then the next slot to fill.
-    pub(super) count: [u16; BA_POINTS],
+    pub(super) count: [u16; P],
     /// Landmark slots seen by the window so far (one bit each).
-    pub(super) marked: [u32; capacity::MAX_LANDMARKS / 32],
+    pub(super) marked: [u32; LW],
     /// Keyframe slot: camera index + 1, or [`IN_WINDOW`] / [`FIXED`] while choosing, 0: none.
-    pub(super) role: [u16; capacity::MAX_KEYFRAMES],
+    pub(super) role: [u16; K],
     /// Global BA: landmark slot's first segment + 1 (0: none yet).
-    pub(super) first_segment: [u16; capacity::MAX_LANDMARKS],
+    pub(super) first_segment: [u16; L],
 }
 
-impl Scratch {
+impl<const K: usize, const L: usize, const LW: usize, const P: usize> Scratch<K, L, LW, P> {
     pub(super) const fn new() -> Self {
         Self {
-            point_of: [0; capacity::MAX_LANDMARKS],
-            count: [0; BA_POINTS],
-            marked: [0; capacity::MAX_LANDMARKS / 32],
-            role: [0; capacity::MAX_KEYFRAMES],
-            first_segment: [0; capacity::MAX_LANDMARKS],
+            point_of: [0; L],
+            count: [0; P],
+            marked: [0; LW],
+            role: [0; K],
+            first_segment: [0; L],
         }
     }
 
@@ -98,14 +98,18 @@ impl Scratch {
 /// A keyframe considered for the window or as a fixed neighbour: `(shared, seq, id)`.
 type Ranked = (u16, u32, KeyFrameId);
 
-impl Backend {
+impl<
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Backend<K, L, LW, R, P, O>
+{
     /// Builds the local BA problem around `kf` (see the module documentation); returns the work
     /// units charged (observations scanned, four to a unit).
-    pub(super) fn build_local<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-        kf: KeyFrameId,
-    ) -> Result<u64, BaError> {
+    pub(super) fn build_local(&mut self, map: &Map<K, L>, kf: KeyFrameId) -> Result<u64, BaError> {
         self.ba.clear();
         self.cameras.clear();
         self.points.clear();
@@ -119,7 +123,7 @@ impl Backend {
         scanned += self.mark_landmarks(map, kf);
         for _ in 0..self.params.window_levels {
             let before = window.len();
-            let mut ranked: Vec<Ranked, { capacity::MAX_KEYFRAMES }> = Vec::new();
+            let mut ranked: Vec<Ranked, K> = Vec::new();
             for (id, k) in map.keyframes() {
                 if self.scratch.role(id) != 0 {
                     continue;
@@ -159,7 +163,7 @@ impl Backend {
         }
         scanned += self.choose_points(map, &window);
         let fixed = self.choose_fixed(map, &window, &mut scanned);
-        let mut both: Vec<KeyFrameId, { BA_RIGS }> = Vec::new();
+        let mut both: Vec<KeyFrameId, R> = Vec::new();
         for &id in window.iter().chain(&fixed) {
             let _ = both.push(id);
         }
@@ -171,11 +175,7 @@ impl Backend {
     }
 
     /// Marks the landmarks keyframe `id` observes; returns the observations scanned.
-    fn mark_landmarks<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-        id: KeyFrameId,
-    ) -> u64 {
+    fn mark_landmarks(&mut self, map: &Map<K, L>, id: KeyFrameId) -> u64 {
         let Some(k) = map.keyframe(id) else { return 0 };
         for o in &k.observations {
             if map.landmark(o.landmark).is_some() {
@@ -186,11 +186,7 @@ impl Backend {
     }
 
     /// Makes every live landmark the window observes a provisional point (up to capacity).
-    fn choose_points<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-        window: &[KeyFrameId],
-    ) -> u64 {
+    fn choose_points(&mut self, map: &Map<K, L>, window: &[KeyFrameId]) -> u64 {
         let mut scanned = 0u64;
         for &id in window {
             let Some(k) = map.keyframe(id) else { continue };
@@ -198,14 +194,14 @@ impl Backend {
             for o in &k.observations {
                 let slot = o.landmark.0.index();
                 let Some(lm) = map.landmark(o.landmark) else { continue };
-                if self.scratch.point(slot).is_some() || slot >= capacity::MAX_LANDMARKS {
+                if self.scratch.point(slot).is_some() || slot >= L {
                     continue;
                 }
                 let Ok(()) = self.points.push((o.landmark, None, !lm.reference)) else {
                     return scanned;
                 };
                 if let Some(p) = self.scratch.point_of.get_mut(slot) {
-                    // At most BA_POINTS (< 65,535) points.
+                    // At most P (< 65,535) points.
                     *p = self.points.len() as u16;
                 }
             }
@@ -215,13 +211,13 @@ impl Backend {
 
     /// The keyframes outside the window that observe the points, most observations first, up to
     /// the rig capacity left; marked [`FIXED`].
-    fn choose_fixed<const K: usize, const L: usize>(
+    fn choose_fixed(
         &mut self,
         map: &Map<K, L>,
         window: &[KeyFrameId],
         scanned: &mut u64,
-    ) -> Vec<KeyFrameId, BA_RIGS> {
-        let mut ranked: Vec<Ranked, { capacity::MAX_KEYFRAMES }> = Vec::new();
+    ) -> Vec<KeyFrameId, R> {
+        let mut ranked: Vec<Ranked, K> = Vec::new();
         for (id, k) in map.keyframes() {
             if self.scratch.role(id) != 0 {
                 continue;
@@ -239,7 +235,7 @@ impl Backend {
         ranked.sort_unstable_by_key(|r| core::cmp::Reverse((r.0, r.1)));
         let mut fixed = Vec::new();
         for &(_, _, id) in &ranked {
-            if window.len() + fixed.len() >= BA_RIGS || fixed.push(id).is_err() {
+            if window.len() + fixed.len() >= R || fixed.push(id).is_err() {
                 break;
             }
             self.scratch.set_role(id, FIXED);
@@ -249,7 +245,7 @@ impl Backend {
 
     /// Counts the observations of each provisional point by `keyframes`, then drops the points
     /// seen fewer than twice and those past the observation capacity.
-    pub(super) fn count_observations_of<const K: usize, const L: usize>(
+    pub(super) fn count_observations_of(
         &mut self,
         map: &Map<K, L>,
         keyframes: &[KeyFrameId],
@@ -277,9 +273,9 @@ impl Backend {
                 break;
             };
             let slot = id.0.index();
-            let keep = n >= 2 && total + usize::from(n) <= BA_OBSERVATIONS;
+            let keep = n >= 2 && total + usize::from(n) <= O;
             if let Some(p) = self.scratch.point_of.get_mut(slot) {
-                // At most BA_POINTS points.
+                // At most P points.
                 *p = if keep { kept as u16 + 1 } else { 0 };
             }
             if keep {
@@ -299,7 +295,7 @@ impl Backend {
 
     /// Adds the window's keyframes (free, but the oldest when there is no fixed neighbour) and
     /// the fixed neighbours as cameras.
-    fn add_cameras<const K: usize, const L: usize>(
+    fn add_cameras(
         &mut self,
         map: &Map<K, L>,
         window: &[KeyFrameId],
@@ -316,7 +312,7 @@ impl Backend {
         };
         // A keyframe seeing few of the points is too weakly held to move: BA would be free to
         // swing it, so it stays fixed.
-        let mut all: Vec<(KeyFrameId, bool), BA_RIGS> = Vec::new();
+        let mut all: Vec<(KeyFrameId, bool), R> = Vec::new();
         for &id in window {
             let held = self.observations_of_points(map, id) >= MIN_FREE_KEYFRAME_OBSERVATIONS;
             let _ = all.push((id, Some(id) != gauge && held));
@@ -328,23 +324,16 @@ impl Backend {
             let Some(k) = map.keyframe(id) else { continue };
             let cam = self.ba.add_keyframe(&k.t_wc.inverse(), !free)?;
             if self.cameras.push((id, cam, free)).is_err() {
-                return Err(BaError::Full {
-                    kind: VariableKind::Camera,
-                    capacity: super::BA_CAMERAS,
-                });
+                return Err(BaError::Full { kind: VariableKind::Camera, capacity: K });
             }
-            // At most BA_CAMERAS (< 65,535) cameras.
+            // At most K (< 65,535) cameras.
             self.scratch.set_role(id, self.cameras.len() as u16);
         }
         Ok(())
     }
 
     /// Observations keyframe `id` makes of the problem's points.
-    fn observations_of_points<const K: usize, const L: usize>(
-        &self,
-        map: &Map<K, L>,
-        id: KeyFrameId,
-    ) -> usize {
+    fn observations_of_points(&self, map: &Map<K, L>, id: KeyFrameId) -> usize {
         map.keyframe(id).map_or(0, |k| {
             let in_problem = |o: &&crate::map::Observation| {
                 map.landmark(o.landmark).is_some()
@@ -355,10 +344,7 @@ impl Backend {
     }
 
     /// Adds the points with their counted observation slots (fill cursors reset to 0).
-    pub(super) fn add_points<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-    ) -> Result<(), BaError> {
+    pub(super) fn add_points(&mut self, map: &Map<K, L>) -> Result<(), BaError> {
         for i in 0..self.points.len() {
             let (Some(entry), Some(n)) = (self.points.get_mut(i), self.scratch.count.get_mut(i))
             else {
@@ -372,10 +358,7 @@ impl Backend {
     }
 
     /// Sets every observation slot from the cameras' keyframes; returns observations scanned.
-    pub(super) fn fill_observations<const K: usize, const L: usize>(
-        &mut self,
-        map: &Map<K, L>,
-    ) -> Result<u64, BaError> {
+    pub(super) fn fill_observations(&mut self, map: &Map<K, L>) -> Result<u64, BaError> {
         let mut scanned = 0u64;
         for c in 0..self.cameras.len() {
             let Some(&(kf, cam, _)) = self.cameras.get(c) else { break };
@@ -406,7 +389,7 @@ impl Backend {
     }
 
     /// Writes a finished local BA's free poses and points back to the map.
-    pub(super) fn write_back_local<const K: usize, const L: usize>(&mut self, map: &mut Map<K, L>) {
+    pub(super) fn write_back_local(&mut self, map: &mut Map<K, L>) {
         for &(kf, cam, free) in &self.cameras {
             let (true, Some(t_cw)) = (free, self.ba.camera_pose(cam)) else { continue };
             if let Some(k) = map.keyframe_mut(kf) {

@@ -48,6 +48,32 @@
 //! 3.07 to 2.96 mm). With segments of 8, 7-Scenes averaged 0.0362 m (max 0.0464, SLAM better
 //! than odometry in 9 of 12 runs instead of 12), and the demo gave 2.99 mm (mean 2.99 mm).
 
+//!
+//! # Capacities: the board's and the host-scale
+//!
+//! [`Backend`] is sized by its parameters, for a map of the same sizes. The board's
+//! ([`BoardBackend`], the defaults, with [`crate::map::BoardMap`]: 32 keyframes, 1,024
+//! landmarks, an adjuster of 32 rigs) is what the firmware runs; it caps a local BA at 32
+//! keyframes in all, so the window's type cap of 65 is never reached there. The host-scale one
+//! ([`HostBackend`] with [`crate::map::HostMap`]: 256 keyframes, 16,384 landmarks, 96 rigs) has
+//! room for a full window and is the host simulator's `--map host`. While the board's map has
+//! room (fewer than 32 keyframes, nothing retired) the two give the same bits.
+//!
+//! Measured with it (`ferroslam-sim demo --frames 3000 --map host`, 252 keyframes all kept;
+//! `replay` of 7-Scenes, 68 keyframes), at the default two covisibility levels: the windows
+//! average 13.3 keyframes while the map holds more than 120 (15 windows), 9.8 on 7-Scenes, not the
+//! paper's 50-65. A keyframe shares landmarks mostly with keyframes near it in time: the front
+//! end makes new landmarks at each keyframe and re-acquires few old ones, and nothing closes
+//! loops, so two levels of covisibility reach a dozen keyframes. With 8 levels (a build with
+//! `window_levels: 8`, not the default) the two windows built in the large map averaged 56.5
+//! keyframes; but a window that size takes hundreds of frames to solve at the default quota (15
+//! local BAs in the 3,000 frames against 33). Accuracy (ATE, evo's alignment) on the 3,000 frames:
+//! the board's map 5.3 mm, the host-scale map 15.0 mm at 2 levels and 7.8 mm at 8; on 7-Scenes,
+//! 0.0349 m (board), 0.0352 m and 0.0366 m. Holding every keyframe makes the front end re-acquire
+//! old landmarks that drifted and were never corrected by a loop closure; the board's map retires
+//! them. So the default stays the board's map with 2 levels, and the 50-65 window of a large map
+//! is an option measured, not a default that pays.
+
 mod global;
 mod local;
 
@@ -97,6 +123,36 @@ pub const BA_DEPTH_NOISE_COEFF_PER_M: f32 = 6.0e-4;
 
 /// The one adjuster the back end uses for local and global BA (they never run at once).
 pub type BoardBundleAdjuster = BundleAdjuster<BA_RIGS, BA_CAMERAS, BA_POINTS, BA_OBSERVATIONS>;
+
+/// The back end sized for the board's map ([`crate::map::BoardMap`]) with the adjuster
+/// [`BoardBundleAdjuster`]: what the firmware runs.
+pub type BoardBackend = Backend;
+
+/// Keyframes of the host-scale map ([`crate::map::HostMap`]): enough for the paper's local
+/// window to average 50-65 keyframes in a map of over 120 (issue 4), which the board's 32-keyframe
+/// map cannot hold. Host only: the map is about 1 MB and its back end ([`HostBackend`]) about
+/// 380 KB.
+pub const HOST_MAX_KEYFRAMES: usize = 256;
+/// Landmarks of the host-scale map.
+pub const HOST_MAX_LANDMARKS: usize = 16_384;
+/// Rigs of the host-scale back end's adjuster: a full window of
+/// [`capacity::LOCAL_WINDOW_MAX`] keyframes plus 31 fixed neighbours.
+pub const HOST_BA_RIGS: usize = capacity::LOCAL_WINDOW_MAX + 31;
+/// Points of the host-scale back end's adjuster.
+pub const HOST_BA_POINTS: usize = 4096;
+/// Observations of the host-scale back end's adjuster: every observation of every rig's
+/// keyframe ([`capacity::MAX_OBSERVATIONS_PER_KEYFRAME`] each).
+pub const HOST_BA_OBSERVATIONS: usize = HOST_BA_RIGS * capacity::MAX_OBSERVATIONS_PER_KEYFRAME;
+
+/// The back end sized for the host-scale map ([`crate::map::HostMap`]).
+pub type HostBackend = Backend<
+    HOST_MAX_KEYFRAMES,
+    HOST_MAX_LANDMARKS,
+    { HOST_MAX_LANDMARKS / 32 },
+    HOST_BA_RIGS,
+    HOST_BA_POINTS,
+    HOST_BA_OBSERVATIONS,
+>;
 
 /// Tunables of the back end.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -250,11 +306,22 @@ enum Job {
     Finished(BaKind, BaSummary),
 }
 
-/// The back end (see the module documentation).
+/// The back end (see the module documentation), sized for a map of `K` keyframes and `L`
+/// landmarks ([`Map<K, L>`]; `LW` = `L / 32` rounded up, the words of a bitset over its landmark
+/// slots, a parameter of its own because stable Rust cannot compute it in a type) with an adjuster
+/// of `R` rigs, `K` cameras, `P` points and `O` observations. The defaults are the board's
+/// ([`BoardBackend`]); [`HostBackend`] is the host-scale one.
 #[derive(Debug)]
-pub struct Backend {
+pub struct Backend<
+    const K: usize = { capacity::MAX_KEYFRAMES },
+    const L: usize = { capacity::MAX_LANDMARKS },
+    const LW: usize = { capacity::MAX_LANDMARKS / 32 },
+    const R: usize = BA_RIGS,
+    const P: usize = BA_POINTS,
+    const O: usize = BA_OBSERVATIONS,
+> {
     params: BackendParams,
-    ba: BoardBundleAdjuster,
+    ba: BundleAdjuster<R, K, P, O>,
     job: Job,
     /// The newest keyframe not yet adjusted around.
     pending: Option<KeyFrameId>,
@@ -263,26 +330,50 @@ pub struct Backend {
     /// Newest keyframe creation number seen.
     newest_seq: u32,
     /// The keyframe of every camera of the problem, its id there, and whether its pose is free.
-    cameras: Vec<(KeyFrameId, CameraId, bool), BA_CAMERAS>,
+    cameras: Vec<(KeyFrameId, CameraId, bool), K>,
     /// The landmark of every point of the problem, its id there once added, and whether it is
     /// free.
-    points: Vec<(LandmarkId, Option<PointId>, bool), BA_POINTS>,
+    points: Vec<(LandmarkId, Option<PointId>, bool), P>,
     /// Global BA: each rig's segment number and pose before the solve (`t_sw`).
-    rig_before: Vec<(u32, crate::geometry::Pose), BA_CAMERAS>,
+    rig_before: Vec<(u32, crate::geometry::Pose), K>,
     /// Global BA: the newest keyframe creation number when the problem was built (keyframes
     /// and landmarks made after it are not in the problem, and move with their segment).
     built_seq: u32,
-    scratch: local::Scratch,
+    scratch: local::Scratch<K, L, LW, P>,
     stats: BackendStats,
 }
 
-impl Default for Backend {
+impl<
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Default for Backend<K, L, LW, R, P, O>
+{
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl Backend {
+impl<
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Backend<K, L, LW, R, P, O>
+{
+    /// The capacities agree: the landmark bitset covers every landmark slot, the adjuster has a
+    /// camera for every keyframe of the map (a global BA adds them all) and at least as many as
+    /// its rigs (every rig of a local BA is a keyframe), and point and camera numbers fit the
+    /// `u16` scratch. Evaluated by [`Self::with_params`], so a wrong size fails to compile.
+    const CAPACITIES_AGREE: () = assert!(
+        LW * 32 >= L && K >= R && R >= 1 && P < u16::MAX as usize && K < u16::MAX as usize - 1
+    );
+
     /// An idle back end with [`BackendParams::DEFAULT`] (`const`, for a `static`).
     pub const fn new() -> Self {
         Self::with_params(BackendParams::DEFAULT)
@@ -290,6 +381,7 @@ impl Backend {
 
     /// An idle back end with `params` (checked on every step).
     pub const fn with_params(params: BackendParams) -> Self {
+        let () = Self::CAPACITIES_AGREE;
         Self {
             params,
             ba: BundleAdjuster::new(),
@@ -343,7 +435,7 @@ impl Backend {
     /// # Errors
     /// [`BackendError::InvalidParams`]; [`BackendError::Solver`] when the solver refuses a
     /// problem (the job is dropped, the map unchanged).
-    pub fn step<const K: usize, const L: usize>(
+    pub fn step(
         &mut self,
         map: &mut Map<K, L>,
         cam: &PinholeCamera,
@@ -406,10 +498,7 @@ impl Backend {
 
     /// Writes the result of a solve that [`Self::advance_solve`] finished to `map` (unless the
     /// solve diverged) and makes the back end idle; `None` when no finished solve waits.
-    pub fn finish_solve<const K: usize, const L: usize>(
-        &mut self,
-        map: &mut Map<K, L>,
-    ) -> Option<BackendStatus> {
+    pub fn finish_solve(&mut self, map: &mut Map<K, L>) -> Option<BackendStatus> {
         let Job::Finished(kind, summary) = self.job else {
             return None;
         };
@@ -426,7 +515,7 @@ impl Backend {
     }
 
     /// Builds the next problem, if any, and starts its solve.
-    fn start_job<const K: usize, const L: usize>(
+    fn start_job(
         &mut self,
         map: &Map<K, L>,
         cam: &PinholeCamera,
@@ -465,11 +554,7 @@ impl Backend {
 
     /// Counts one optimization of a free landmark, making it a reference landmark at the
     /// threshold.
-    fn count_optimization<const K: usize, const L: usize>(
-        &mut self,
-        map: &mut Map<K, L>,
-        id: LandmarkId,
-    ) {
+    fn count_optimization(&mut self, map: &mut Map<K, L>, id: LandmarkId) {
         let threshold = self.params.reference_after;
         let Some(lm) = map.landmark_mut(id) else { return };
         lm.times_optimized = lm.times_optimized.saturating_add(1);

@@ -4,7 +4,9 @@
 //! real frames in the workspace tests (`slam_determinism`: the back end on its own thread gives
 //! the sequential bits) and by the firmware replay; here, its edges.
 
-use super::{Backend, BackendError, BackendParams, BackendStatus};
+extern crate std;
+
+use super::{BackendError, BackendParams, BackendStatus, BoardBackend};
 use crate::geometry::PinholeCamera;
 use crate::map::BoardMap;
 
@@ -14,7 +16,7 @@ fn camera() -> PinholeCamera {
 
 #[test]
 fn with_no_solve_under_way_the_split_does_nothing() {
-    let (mut backend, mut map) = (Backend::new(), BoardMap::new());
+    let (mut backend, mut map) = (BoardBackend::new(), BoardMap::new());
     assert!(!backend.is_solving());
     assert_eq!(backend.advance_solve(5_000), Ok(false));
     assert_eq!(backend.finish_solve(&mut map), None);
@@ -46,7 +48,7 @@ fn tunables_set_the_depth_noise_of_both_solvers() {
 fn advance_solve_checks_the_parameters_like_step() {
     let params = BackendParams { segment_keyframes: 0, ..BackendParams::DEFAULT };
     assert!(!params.is_valid());
-    let mut backend = Backend::with_params(params);
+    let mut backend = BoardBackend::with_params(params);
     assert_eq!(backend.advance_solve(5_000), Err(BackendError::InvalidParams));
     let mut map = BoardMap::new();
     assert_eq!(backend.step(&mut map, &camera(), 5_000), Err(BackendError::InvalidParams));
@@ -92,7 +94,7 @@ fn global_ba_moves_what_was_made_during_the_solve_with_its_segment() {
         }
     }
     let params = BackendParams { segment_keyframes: 2, ..BackendParams::DEFAULT };
-    let mut backend = Backend::with_params(params);
+    let mut backend = BoardBackend::with_params(params);
     backend.keyframe_added(kfs[3], 3);
     backend.pending = None; // no local BA first: the global one is due
     assert_eq!(backend.step(&mut map, &cam, 5_000), Ok(BackendStatus::Built(BaKind::Global)));
@@ -136,4 +138,87 @@ fn global_ba_moves_what_was_made_during_the_solve_with_its_segment() {
     assert!((r.translation.vector - relative_before.translation.vector).norm() < 1e-4);
     assert!(r.rotation.angle_to(&relative_before.rotation) < 1e-4);
     assert!((seen_from_4(&map) - seen_before).norm() < 1e-4);
+}
+
+/// The host-scale back end on a map larger than the board's: 100 keyframes (the board holds 32)
+/// that all see the same 100 landmarks, whose arena slots lie past the board's 1,024. The window
+/// around the newest keyframe stops at the type's cap of 65 keyframes, the next 31 observers are
+/// its fixed neighbours (96 rigs), and the solve pulls the window's drifted poses back.
+#[test]
+fn host_backend_fills_a_65_keyframe_window_in_a_large_map() {
+    // The map (1 MB) and the back end are built on the stack before being boxed in a debug build.
+    let run = std::thread::Builder::new().stack_size(16 << 20).spawn(fill_a_65_keyframe_window);
+    run.unwrap().join().unwrap();
+}
+
+fn fill_a_65_keyframe_window() {
+    use std::boxed::Box;
+
+    use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
+
+    use super::{BaKind, HOST_BA_RIGS, HostBackend};
+    use crate::config::capacity::LOCAL_WINDOW_MAX;
+    use crate::geometry::Pose;
+    use crate::map::{HostMap, KeyFrameId, Observation};
+
+    const KEYFRAMES: u32 = 100;
+    let cam = camera();
+    // Cameras 3 mm apart along x, looking along +z at landmarks 2-3 m ahead.
+    let truth = |i: u32| Pose::translation(0.003 * i as f32, 0.0, 0.0);
+    let points: [Point3<f32>; 100] = core::array::from_fn(|j| {
+        let (c, r) = ((j % 10) as f32, (j / 10) as f32);
+        Point3::new(-0.6 + 0.13 * c, -0.6 + 0.13 * r, 2.0 + 0.1 * ((j * 7) % 10) as f32)
+    });
+    // The 40 newest keyframes drifted a little.
+    let drift = Pose::from_parts(
+        Translation3::new(0.004, -0.003, 0.002),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.002),
+    );
+    let believed = |i: u32| if i >= 60 { drift * truth(i) } else { truth(i) };
+    let mut map: Box<HostMap> = Box::default();
+    let kfs: std::vec::Vec<KeyFrameId> =
+        (0..KEYFRAMES).map(|i| map.add_keyframe(believed(i), f64::from(i)).unwrap()).collect();
+    // Landmarks nobody observes take the first 1,100 slots.
+    for _ in 0..1_100 {
+        map.add_landmark(Point3::new(0.0, 0.0, 2.0), kfs[0]).unwrap();
+    }
+    for p in &points {
+        let lm = map.add_landmark(*p, kfs[0]).unwrap();
+        assert!(lm.0.index() >= 1_100, "past the board's landmark slots");
+        for (i, &kf) in (0..KEYFRAMES).zip(&kfs) {
+            let p_c = truth(i).inverse() * p;
+            let uv = cam.project(&p_c).unwrap_or_else(|| unreachable!("every point is in view"));
+            let obs = Observation::new(lm, (uv.x, uv.y), Some(p_c.z)).unwrap();
+            map.add_observation(kf, obs).unwrap();
+        }
+    }
+    let newest = KEYFRAMES - 1;
+    let error = |map: &HostMap| {
+        let k = map.keyframe(kfs[newest as usize]).unwrap();
+        (k.t_wc.translation.vector - truth(newest).translation.vector).norm()
+    };
+    let before = error(&map);
+    let mut backend: Box<HostBackend> = Box::default();
+    backend.keyframe_added(kfs[newest as usize], newest);
+    assert_eq!(backend.step(&mut map, &cam, 5_000), Ok(BackendStatus::Built(BaKind::Local)));
+    assert_eq!(backend.stats().window_sizes[LOCAL_WINDOW_MAX], 1, "a window of 65 keyframes");
+    assert_eq!(backend.cameras.len(), HOST_BA_RIGS, "65 in the window, 31 fixed neighbours");
+    assert_eq!(backend.points.len(), points.len());
+    let mut finished = false;
+    for _ in 0..10_000 {
+        match backend.step(&mut map, &cam, 5_000) {
+            Ok(BackendStatus::Finished(BaKind::Local, _)) => {
+                finished = true;
+                break;
+            }
+            Ok(BackendStatus::Solving(BaKind::Local)) => {}
+            other => panic!("unexpected step {other:?}"),
+        }
+    }
+    assert!(finished, "the local BA finished");
+    let after = error(&map);
+    assert!(
+        after < 0.25 * before,
+        "the newest keyframe moved toward the truth: {before} -> {after} m"
+    );
 }

@@ -118,6 +118,11 @@ impl core::error::Error for MapError {}
 /// The map at the reference board's capacities.
 pub type BoardMap = Map<{ capacity::MAX_KEYFRAMES }, { capacity::MAX_LANDMARKS }>;
 
+/// The host-scale map: room for the paper's local window in a map of over 120 keyframes (see
+/// [`crate::backend::HostBackend`]); about 1 MB, for the host simulator, not the board.
+pub type HostMap =
+    Map<{ crate::backend::HOST_MAX_KEYFRAMES }, { crate::backend::HOST_MAX_LANDMARKS }>;
+
 /// A map of at most `K` keyframes and `L` landmarks (both at most 65,536).
 #[derive(Debug, Clone)]
 pub struct Map<const K: usize, const L: usize> {

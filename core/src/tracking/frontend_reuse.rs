@@ -67,9 +67,15 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         for t in self.local.items() {
             insert(&mut tracked, t.id.0.index());
         }
+        // A map larger than the board's (the host-scale one) has slots past the bitset: those are
+        // looked up in the local map itself.
+        let local = &self.local;
         let is_tracked = |id: LandmarkId| {
             let slot = id.0.index();
-            tracked.get(slot / 32).is_none_or(|w| w & (1 << (slot % 32)) != 0)
+            match tracked.get(slot / 32) {
+                Some(w) => w & (1 << (slot % 32)) != 0,
+                None => local.items().iter().any(|t| t.id == id),
+            }
         };
         // Each feature's depth and descriptor, computed when first needed.
         let mut cache = FeatureCache::new();

@@ -18,7 +18,7 @@ use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendSt
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-pub use super::slam::Schedule;
+pub use super::slam::{MapScale, Schedule};
 use crate::eval::stats::median_of_sorted;
 use crate::frame::{OwnedFrame, halve_frame};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -211,6 +211,8 @@ pub struct OdometryFrame {
 /// What the back end did over a run (SLAM mode).
 #[derive(Debug, Clone, Serialize)]
 pub struct BackendReport {
+    /// The capacities of the map and the back end: `board` (the firmware's) or `host`.
+    pub map_scale: &'static str,
     /// Work units the back end may spend per frame (deterministic replay).
     pub work_quota_per_frame: u32,
     /// How the back end ran beside the front end: `threaded`, `sequential` or `realtime`.
@@ -225,8 +227,15 @@ pub struct BackendReport {
     pub window_sizes: Vec<[u32; 2]>,
     /// Mean local window size, keyframes.
     pub window_mean: f64,
+    /// Local windows built while the map held more than 120 keyframes
+    /// ([`super::slam::LARGE_MAP_KEYFRAMES`]; issue 4 wants their mean at 50-65).
+    pub windows_in_large_map: usize,
+    /// Mean size of those windows, keyframes (`None`: there were none).
+    pub window_mean_in_large_map: Option<f64>,
     /// Keyframes in the map at the end.
     pub map_keyframes: usize,
+    /// The most keyframes the map held, seen after each back-end step.
+    pub map_keyframes_max: usize,
     /// Landmarks in the map at the end.
     pub map_landmarks: usize,
     /// Reference landmarks in the map at the end (fixed in bundle adjustment).
@@ -249,6 +258,8 @@ pub enum TrackMode {
         quota: u32,
         /// How the back end runs beside the front end.
         schedule: Schedule,
+        /// The capacities of the map and the back end.
+        map: MapScale,
     },
 }
 
@@ -336,12 +347,12 @@ where
         (TrackMode::Odometry, false) => {
             odometry_with::<320, 240, S>(source, expected, cam, odometry)
         }
-        (TrackMode::Slam { quota, schedule }, true) => {
-            super::slam::run::<640, 480, S>(source, expected, cam, quota, schedule, slam, backend)
-        }
-        (TrackMode::Slam { quota, schedule }, false) => {
-            super::slam::run::<320, 240, S>(source, expected, cam, quota, schedule, slam, backend)
-        }
+        (TrackMode::Slam { quota, schedule, map }, true) => super::slam::run::<640, 480, S>(
+            source, expected, cam, quota, schedule, map, slam, backend,
+        ),
+        (TrackMode::Slam { quota, schedule, map }, false) => super::slam::run::<320, 240, S>(
+            source, expected, cam, quota, schedule, map, slam, backend,
+        ),
     }
 }
 

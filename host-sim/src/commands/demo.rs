@@ -60,6 +60,9 @@ pub struct DemoArgs {
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
     pub schedule: datapath::Schedule,
+    /// The capacities of the map and the back end (SLAM mode).
+    #[arg(long, value_enum, default_value = "board")]
+    pub map: datapath::MapScale,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
     /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
@@ -93,7 +96,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let depth_level = args.depth_level.unwrap_or(profile.depth_level);
     let frames = sequence.len();
     let started = Instant::now();
-    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule) {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule, args.map) {
         let k = sequence.intrinsics();
         #[allow(clippy::cast_possible_truncation)] // intrinsics are exact in f32
         let sensor = PinholeCamera::new(

@@ -48,16 +48,18 @@ pub enum ModeArg {
 }
 
 impl ModeArg {
-    /// The tracker mode, with `quota` back-end units per frame and `schedule` in SLAM mode.
+    /// The tracker mode, with `quota` back-end units per frame, `schedule` and the map's
+    /// `scale` in SLAM mode.
     pub fn track_mode(
         self,
         quota: u32,
         schedule: datapath::Schedule,
+        map: datapath::MapScale,
     ) -> Option<datapath::TrackMode> {
         match self {
             Self::DataPath => None,
             Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule }),
+            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule, map }),
         }
     }
 
@@ -105,6 +107,9 @@ pub struct ReplayArgs {
     /// How the back end runs beside the front end (SLAM mode).
     #[arg(long, value_enum, default_value = "threaded")]
     pub schedule: datapath::Schedule,
+    /// The capacities of the map and the back end (SLAM mode).
+    #[arg(long, value_enum, default_value = "board")]
+    pub map: datapath::MapScale,
     /// Seed of the front end's RANSAC (default: the core's). Runs with other seeds show how
     /// much of an accuracy figure is chance (`cargo xtask spread`).
     #[arg(long)]
@@ -140,7 +145,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
     let gt = dataset.groundtruth_trajectory().cloned();
-    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule) {
+    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule, args.map) {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;

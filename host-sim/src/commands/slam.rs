@@ -11,10 +11,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Result, anyhow};
 use clap::ValueEnum;
 
-use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
+use ferroslam_core::backend::{
+    BackendError, BackendParams, BackendStatus, HOST_BA_OBSERVATIONS, HOST_BA_POINTS, HOST_BA_RIGS,
+    HOST_MAX_KEYFRAMES, HOST_MAX_LANDMARKS,
+};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
-use ferroslam_core::map::{BoardMap, KeyFrameId};
+use ferroslam_core::map::{KeyFrameId, Map};
 use ferroslam_core::system::Slam;
 use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState};
 
@@ -23,6 +26,10 @@ use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
 const DRAIN_STEPS: usize = 10_000;
+
+/// A map of more than this many keyframes is a large one, where issue 4 (after the paper) wants
+/// the local window to average 50-65 keyframes.
+pub const LARGE_MAP_KEYFRAMES: usize = 120;
 
 /// Work units per slice of the back-end thread in [`Schedule::Realtime`].
 const REALTIME_SLICE: u32 = 500;
@@ -62,6 +69,31 @@ impl Schedule {
     }
 }
 
+/// The capacities of the SLAM system's map and back end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum MapScale {
+    /// The reference board's (`BoardMap`, `BoardBackend`): what the firmware runs, bit for bit.
+    #[default]
+    #[value(help = "The reference board's: 32 keyframes, 1,024 landmarks, a bundle adjuster of \
+                    32 keyframes (what the firmware runs, bit for bit)")]
+    Board,
+    /// Host-scale (`HostMap`, `HostBackend`): room for the paper's local window of 50-65
+    /// keyframes in a map of over 120; not what the board runs.
+    #[value(help = "Host-scale: 256 keyframes, 16,384 landmarks, a bundle adjuster of 96 \
+                    keyframes, so that the local window can reach 65 (not the board's)")]
+    Host,
+}
+
+impl MapScale {
+    /// The scale's name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Board => "board",
+            Self::Host => "host",
+        }
+    }
+}
+
 /// One frame's pose relative to its reference keyframe (`None`: the frame had none; the pose is
 /// then absolute).
 struct Relative {
@@ -72,29 +104,49 @@ struct Relative {
 
 /// The state the front end starts a frame from (front end and map), kept while a back-end step
 /// runs beside it; boxed, as it is about 340 KB.
-struct Snapshot<const W: usize, const H: usize> {
+struct Snapshot<const W: usize, const H: usize, const K: usize, const L: usize> {
     frontend: Box<Frontend<W, H>>,
-    map: Box<BoardMap>,
+    map: Box<Map<K, L>>,
 }
 
 /// The back-end step owed for the previous frame, then the front end on `frame`, under
 /// `schedule`; keyframe poses are recorded after the step.
-struct Stepper<'a, const W: usize, const H: usize> {
-    slam: &'a mut Slam<W, H>,
+struct Stepper<
+    'a,
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> {
+    slam: &'a mut Slam<W, H, K, L, LW, R, P, O>,
     cam: &'a PinholeCamera,
     quota: u32,
     schedule: Schedule,
-    snapshot: Option<Snapshot<W, H>>,
-    keyframe_pose: &'a mut HashMap<KeyFrameId, (f64, Pose)>,
+    snapshot: Option<Snapshot<W, H, K, L>>,
+    record: &'a mut Record,
     /// Whether a frame was tracked whose back-end step has not run yet.
     owed: bool,
 }
 
-impl<const W: usize, const H: usize> Stepper<'_, W, H> {
+impl<
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Stepper<'_, W, H, K, L, LW, R, P, O>
+{
     /// The back-end step alone.
     fn step(&mut self) -> Result<BackendStatus> {
         let status = self.slam.step_backend(self.cam, self.quota).map_err(backend_error)?;
-        record_keyframes(self.slam, self.keyframe_pose);
+        self.record.update(self.slam);
         Ok(status)
     }
 
@@ -121,13 +173,13 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
     fn write_back(&mut self) {
         let (_, map, backend) = self.slam.parts_mut();
         backend.finish_solve(map);
-        record_keyframes(self.slam, self.keyframe_pose);
+        self.record.update(self.slam);
     }
 
     /// [`Schedule::Threaded`] while a solve is under way.
     fn track_beside_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
         // A step that does not finish its solve leaves the map as the previous frame left it.
-        record_keyframes(self.slam, self.keyframe_pose);
+        self.record.update(self.slam);
         let (cam, quota) = (self.cam, self.quota);
         let (frontend, map, backend) = self.slam.parts_mut();
         match &mut self.snapshot {
@@ -164,7 +216,7 @@ impl<const W: usize, const H: usize> Stepper<'_, W, H> {
 
     /// [`Schedule::Realtime`] while a solve is under way.
     fn track_beside_realtime_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
-        record_keyframes(self.slam, self.keyframe_pose);
+        self.record.update(self.slam);
         let cam = self.cam;
         let (frontend, map, backend) = self.slam.parts_mut();
         let tracking = AtomicBool::new(true);
@@ -197,17 +249,20 @@ fn solve_finished(joined: std::thread::Result<Result<bool, BackendError>>) -> Re
     joined.map_err(|_| anyhow!("back-end thread panicked"))?.map_err(backend_error)
 }
 
-/// Runs `source` through a boxed `Slam<W, H>` (front end with `frontend`, back end with
-/// `backend`) with `quota` back-end units after each frame, the back end scheduled by `schedule`.
+/// Runs `source` through a boxed `Slam<W, H>` with the map and back end of `scale` (front end
+/// with `frontend`, back end with `backend`) with `quota` back-end units after each frame, the
+/// back end scheduled by `schedule`.
 ///
 /// # Errors
 /// As [`run_with`]; a back-end error.
+#[allow(clippy::too_many_arguments)]
 pub fn run<const W: usize, const H: usize, S>(
     source: &mut S,
     expected: usize,
     cam: &PinholeCamera,
     quota: u32,
     schedule: Schedule,
+    scale: MapScale,
     frontend: FrontendParams,
     backend: BackendParams,
 ) -> Result<OdometryRun>
@@ -215,18 +270,63 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    // About a megabyte: boxed, never on the stack.
-    let mut slam: Box<Slam<W, H>> = Box::new(Slam::with_params(frontend, backend));
+    match scale {
+        MapScale::Board => {
+            // The board's capacities: `Slam`'s defaults.
+            let slam: Box<Slam<W, H>> = Box::new(Slam::with_params(frontend, backend));
+            run_sized(slam, source, expected, cam, quota, schedule, scale)
+        }
+        MapScale::Host => {
+            let slam: Box<
+                Slam<
+                    W,
+                    H,
+                    HOST_MAX_KEYFRAMES,
+                    HOST_MAX_LANDMARKS,
+                    { HOST_MAX_LANDMARKS / 32 },
+                    HOST_BA_RIGS,
+                    HOST_BA_POINTS,
+                    HOST_BA_OBSERVATIONS,
+                >,
+            > = Box::new(Slam::with_params(frontend, backend));
+            run_sized(slam, source, expected, cam, quota, schedule, scale)
+        }
+    }
+}
+
+/// [`run`] with the system `slam`, boxed (a megabyte or more: never on the stack).
+fn run_sized<
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+    S,
+>(
+    mut slam: Box<Slam<W, H, K, L, LW, R, P, O>>,
+    source: &mut S,
+    expected: usize,
+    cam: &PinholeCamera,
+    quota: u32,
+    schedule: Schedule,
+    scale: MapScale,
+) -> Result<OdometryRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
-    // The latest pose of every keyframe seen: keyframes the map retires keep their last one.
-    let mut keyframe_pose: HashMap<KeyFrameId, (f64, Pose)> = HashMap::new();
+    let mut record = Record::default();
     let mut stepper = Stepper {
         slam: &mut slam,
         cam,
         quota,
         schedule,
         snapshot: None,
-        keyframe_pose: &mut keyframe_pose,
+        record: &mut record,
         owed: false,
     };
     let data = run_with(source, expected, |frame| {
@@ -262,7 +362,8 @@ where
             break;
         }
     }
-    record_keyframes(&slam, &mut keyframe_pose);
+    record.update(&slam);
+    let keyframe_pose = &record.keyframe_pose;
     let camera = relative
         .iter()
         .map(|r| {
@@ -287,24 +388,70 @@ where
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
-        state_bytes: std::mem::size_of::<Slam<W, H>>(),
-        backend: Some(backend_report(&slam, quota, schedule)),
+        state_bytes: std::mem::size_of::<Slam<W, H, K, L, LW, R, P, O>>(),
+        backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
     })
 }
 
-fn record_keyframes<const W: usize, const H: usize>(
-    slam: &Slam<W, H>,
-    poses: &mut HashMap<KeyFrameId, (f64, Pose)>,
-) {
-    for (id, k) in slam.map().keyframes() {
-        poses.insert(id, (k.timestamp_s, k.t_wc));
+/// What a run keeps of the map and the back end after every back-end step.
+#[derive(Default)]
+struct Record {
+    /// The latest pose of every keyframe seen: keyframes the map retires keep their last one.
+    keyframe_pose: HashMap<KeyFrameId, (f64, Pose)>,
+    /// The back end's window histogram (`BackendStats::window_sizes`) at the last update.
+    windows_seen: Vec<u32>,
+    /// `(window keyframes, map keyframes)` of every local window, in the order built: a window
+    /// is built by a step that reads the map and does not change it.
+    windows: Vec<(usize, usize)>,
+    /// The most keyframes the map held at an update.
+    map_keyframes_max: usize,
+}
+
+impl Record {
+    fn update<
+        const W: usize,
+        const H: usize,
+        const K: usize,
+        const L: usize,
+        const LW: usize,
+        const R: usize,
+        const P: usize,
+        const O: usize,
+    >(
+        &mut self,
+        slam: &Slam<W, H, K, L, LW, R, P, O>,
+    ) {
+        for (id, k) in slam.map().keyframes() {
+            self.keyframe_pose.insert(id, (k.timestamp_s, k.t_wc));
+        }
+        let sizes = &slam.backend().stats().window_sizes;
+        self.windows_seen.resize(sizes.len(), 0);
+        let map_keyframes = slam.map().num_keyframes();
+        self.map_keyframes_max = self.map_keyframes_max.max(map_keyframes);
+        for (n, (&now, seen)) in sizes.iter().zip(&mut self.windows_seen).enumerate() {
+            for _ in *seen..now {
+                self.windows.push((n, map_keyframes));
+            }
+            *seen = now;
+        }
     }
 }
 
-fn backend_report<const W: usize, const H: usize>(
-    slam: &Slam<W, H>,
+fn backend_report<
+    const W: usize,
+    const H: usize,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+>(
+    slam: &Slam<W, H, K, L, LW, R, P, O>,
+    record: &Record,
     quota: u32,
     schedule: Schedule,
+    scale: MapScale,
 ) -> BackendReport {
     let b = slam.backend().stats();
     let window_sizes: Vec<[u32; 2]> = b
@@ -317,7 +464,11 @@ fn backend_report<const W: usize, const H: usize>(
     let windows: u32 = window_sizes.iter().map(|w| w[1]).sum();
     let weighted: u64 = window_sizes.iter().map(|w| u64::from(w[0]) * u64::from(w[1])).sum();
     let all_points = b.free_points + b.fixed_points;
+    let large: Vec<usize> =
+        record.windows.iter().filter(|w| w.1 > LARGE_MAP_KEYFRAMES).map(|w| w.0).collect();
     BackendReport {
+        map_scale: scale.name(),
+        map_keyframes_max: record.map_keyframes_max,
         work_quota_per_frame: quota,
         schedule: schedule.name(),
         deterministic: schedule != Schedule::Realtime,
@@ -325,6 +476,9 @@ fn backend_report<const W: usize, const H: usize>(
         global_runs: b.global_runs,
         window_mean: if windows > 0 { weighted as f64 / f64::from(windows) } else { 0.0 },
         window_sizes,
+        windows_in_large_map: large.len(),
+        window_mean_in_large_map: (!large.is_empty())
+            .then(|| large.iter().sum::<usize>() as f64 / large.len() as f64),
         map_keyframes: slam.map().num_keyframes(),
         map_landmarks: slam.map().num_landmarks(),
         reference_landmarks: slam.map().landmarks().filter(|(_, l)| l.reference).count(),
