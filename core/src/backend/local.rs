@@ -194,7 +194,7 @@ impl<
             for o in &k.observations {
                 let slot = o.landmark.0.index();
                 let Some(lm) = map.landmark(o.landmark) else { continue };
-                if self.scratch.point(slot).is_some() || slot >= L {
+                if self.scratch.point(slot).is_some() {
                     continue;
                 }
                 let Ok(()) = self.points.push((o.landmark, None, !lm.reference)) else {

@@ -11,14 +11,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Result, anyhow};
 use clap::ValueEnum;
 
-use ferroslam_core::backend::{
-    BackendError, BackendParams, BackendStatus, HOST_BA_OBSERVATIONS, HOST_BA_POINTS, HOST_BA_RIGS,
-    HOST_MAX_KEYFRAMES, HOST_MAX_LANDMARKS,
-};
+use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::map::{KeyFrameId, Map};
-use ferroslam_core::system::Slam;
+use ferroslam_core::system::{HostScaleSlam, Slam};
 use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState};
 
 use super::datapath::{BackendReport, OdometryRun, check_fits, frame_figures, run_with};
@@ -277,18 +274,7 @@ where
             run_sized(slam, source, expected, cam, quota, schedule, scale)
         }
         MapScale::Host => {
-            let slam: Box<
-                Slam<
-                    W,
-                    H,
-                    HOST_MAX_KEYFRAMES,
-                    HOST_MAX_LANDMARKS,
-                    { HOST_MAX_LANDMARKS / 32 },
-                    HOST_BA_RIGS,
-                    HOST_BA_POINTS,
-                    HOST_BA_OBSERVATIONS,
-                >,
-            > = Box::new(Slam::with_params(frontend, backend));
+            let slam: Box<HostScaleSlam<W, H>> = Box::new(Slam::with_params(frontend, backend));
             run_sized(slam, source, expected, cam, quota, schedule, scale)
         }
     }
