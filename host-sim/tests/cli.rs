@@ -125,6 +125,21 @@ fn demo_rejects_bad_options_and_usage_errors_exit_2() {
     assert_eq!(run.status.code(), Some(1));
     assert!(stderr(&run).contains("frames"), "{}", stderr(&run));
     assert_eq!(sim(&["no-such-command"]).status.code(), Some(2));
+    let dir = out.path().to_str().unwrap();
+    let run = sim(&["demo", "--frames", "5", "--skip-frames", "5", "--out", dir]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(stderr(&run).contains("--skip-frames 5 leaves no frame"), "{}", stderr(&run));
+}
+
+#[test]
+fn a_demo_started_later_tracks_from_its_first_frame() {
+    // Frames 20-29 of the 30 rendered: ten poses, the first at frame 20's time (30 frames a
+    // second), against the whole ground truth.
+    let (_, report, trajectory) = demo_outputs(&["--frames", "30", "--skip-frames", "20"]);
+    assert_eq!(trajectory.lines().count(), 10, "{trajectory}");
+    let first: f64 = trajectory.split_whitespace().next().unwrap().parse().unwrap();
+    assert!((first - 20.0 / 30.0).abs() < 1e-6, "{first}");
+    assert!(report["ate_rmse_m"].as_f64().is_some(), "{report}");
 }
 
 /// `demo ARGS` into a new folder, which must succeed: the run, its report.json and its

@@ -6,7 +6,9 @@
 //! registered depth about +-0.005 m around 0.037 m). One run therefore cannot tell a real
 //! improvement from a lucky draw; this command replays a dataset from several start frames (and
 //! optionally RANSAC seeds) in the odometry and SLAM modes and reports the spread, so a change is
-//! judged on the mean.
+//! judged on the mean. SLAM runs give a second figure, the ATE of the poses as output frame by
+//! frame (`slam online`: before later bundle adjustment moved their keyframes, what a robot
+//! reading the pose stream gets), which a back-end change can move apart from the first.
 //!
 //! The default is 12 start frames and the default seed. It was 4 seeds x 3 start frames (0, 300,
 //! 600) until measured on 7-Scenes (commit 6900783): there the odometry mode gives the same ATE
@@ -16,7 +18,7 @@
 //! 0.006 m (odometry, same commit), so each start is a draw of its own.
 //!
 //! ```text
-//! cargo xtask spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE] [-- REPLAY ARGS]
+//! cargo xtask spread [--dataset DIR | --demo] [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE] [-- REPLAY ARGS]
 //! ```
 //!
 //! - `--dataset`: a TUM-layout folder (default: 7-Scenes, `../shared/datasets/...`).
@@ -28,6 +30,9 @@
 //! - `--skips`: start frames, each a run that skips that many frames (default
 //!   `0,50,100,...,550`: 12 runs per mode, each at least 450 frames of 7-Scenes).
 //! - `--json FILE`: every run's ATE and the summaries, as JSON.
+//! - `--demo`: the built-in synthetic sequence (`ferroslam-sim demo --skip-frames K`) instead of
+//!   a dataset; its default start frames are `0,3,...,45` (16 runs per mode, each at least 255
+//!   of its 300 frames), and it takes no `--dataset`, `--calibration` or `--seeds`.
 //! - `-- REPLAY ARGS`: given to every replay, to measure an option's effect (for example
 //!   `-- --depth-level 0` or `-- --backend-quota 2500`).
 //!
@@ -56,6 +61,8 @@ struct Options {
     seeds: u64,
     skips: Vec<usize>,
     json: Option<PathBuf>,
+    /// The demo's synthetic sequence instead of `dataset`.
+    demo: bool,
     /// Arguments after `--`, given to every replay.
     replay_args: Vec<String>,
 }
@@ -99,10 +106,21 @@ pub fn run(args: &[String]) -> Result<()> {
     print_and_write(&opts, &grid, &results)
 }
 
+/// What one run measured: the ATE RMSE of its `CameraTrajectory.txt` and, in SLAM mode, of the
+/// poses as output frame by frame (report.json `ate_online_rmse_m`), metres.
+#[derive(Debug, Clone, Copy)]
+struct Ate {
+    final_m: f64,
+    online_m: Option<f64>,
+}
+
+/// Which figure of a run a summary row reads (`None`: the run has none).
+type Figure = fn(&Ate) -> Option<f64>;
+
 /// Replays every run of `grid`, two at a time, and returns their ATEs in grid order.
-fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Result<Vec<f64>> {
+fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Result<Vec<Ate>> {
     let next = Mutex::new(0usize);
-    let results: Mutex<Vec<Option<Result<f64>>>> = Mutex::new(grid.iter().map(|_| None).collect());
+    let results: Mutex<Vec<Option<Result<Ate>>>> = Mutex::new(grid.iter().map(|_| None).collect());
     std::thread::scope(|s| {
         for _ in 0..2 {
             s.spawn(|| {
@@ -118,8 +136,8 @@ fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Resul
                     if let Ok(a) = &r {
                         let seed = run.seed.map_or("default".to_owned(), |s| s.to_string());
                         eprintln!(
-                            "{:>8} seed {seed:>7} skip {:>4}: ATE {a:.4} m",
-                            run.mode, run.skip
+                            "{:>8} seed {seed:>7} skip {:>4}: ATE {:.4} m",
+                            run.mode, run.skip, a.final_m
                         );
                     }
                     results.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
@@ -131,10 +149,15 @@ fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Resul
     results.into_iter().map(|r| r.context("a run was not done")?).collect()
 }
 
-/// One replay; its ATE RMSE, metres.
-fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<f64> {
+/// One replay; its ATEs.
+fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<Ate> {
     let mut cmd = Command::new(sim);
-    cmd.arg("replay").arg(&opts.dataset).arg("--out").arg(out);
+    if opts.demo {
+        cmd.arg("demo");
+    } else {
+        cmd.arg("replay").arg(&opts.dataset);
+    }
+    cmd.arg("--out").arg(out);
     if let Some(c) = &opts.calibration {
         cmd.arg("--calibration").arg(c);
     }
@@ -151,50 +174,69 @@ fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<f64> 
             String::from_utf8_lossy(&output.stderr).trim()
         );
     }
-    read_report(out)?["ate_rmse_m"]
+    let report = read_report(out)?;
+    let final_m = report["ate_rmse_m"]
         .as_f64()
-        .with_context(|| format!("{} has no ate_rmse_m", out.join("report.json").display()))
+        .with_context(|| format!("{} has no ate_rmse_m", out.join("report.json").display()))?;
+    Ok(Ate { final_m, online_m: report["ate_online_rmse_m"].as_f64() })
 }
 
 /// Prints the summary of each mode and the paired SLAM-vs-odometry comparison; writes the JSON.
-fn print_and_write(opts: &Options, grid: &[Run], ate: &[f64]) -> Result<()> {
+/// SLAM gets a second row, `slam online`: the poses as output frame by frame, before later
+/// bundle adjustment moved their keyframes (what a robot reading the pose stream gets; in
+/// odometry mode the two are the same).
+fn print_and_write(opts: &Options, grid: &[Run], ate: &[Ate]) -> Result<()> {
     println!(
         "ATE RMSE over {} runs per mode ({} seed{} x start frames {:?}) of {}",
         grid.len() / 2,
         opts.seeds + 1,
         if opts.seeds == 0 { "" } else { "s" },
         opts.skips,
-        opts.dataset.display()
+        if opts.demo { "the demo".to_owned() } else { opts.dataset.display().to_string() }
     );
-    println!("mode       mean    median  min     max     default run");
+    println!("mode         mean    median  min     max     default run");
+    let rows: [(&str, &str, Figure); 3] = [
+        ("odometry", "odometry", |a| Some(a.final_m)),
+        ("slam", "slam", |a| Some(a.final_m)),
+        ("slam online", "slam", |a| a.online_m),
+    ];
     let mut modes = Vec::new();
-    for mode in ["odometry", "slam"] {
-        let v: Vec<f64> =
-            grid.iter().zip(ate).filter(|(r, _)| r.mode == mode).map(|(_, a)| *a).collect();
-        let default = grid
-            .iter()
-            .zip(ate)
-            .find(|(r, _)| r.mode == mode && r.seed.is_none() && r.skip == 0)
-            .map(|(_, a)| *a);
+    for (name, mode, pick) in rows {
+        let of_mode = || grid.iter().zip(ate).filter(move |(r, _)| r.mode == mode);
+        // Every run of the mode must have the figure (a row of some runs would mislead).
+        let Some(v) = of_mode().map(|(_, a)| pick(a)).collect::<Option<Vec<f64>>>() else {
+            continue;
+        };
+        let default =
+            of_mode().find(|(r, _)| r.seed.is_none() && r.skip == 0).and_then(|(_, a)| pick(a));
         // The mean, the median (numpy's, as in evo) and the range of the mode's ATEs.
         let ErrorStats { mean, median, min, max, .. } =
             ErrorStats::from_errors(&v).context("no runs")?;
         let d = default.map_or("-".to_owned(), |a| format!("{a:.4}"));
-        println!("{mode:<10} {mean:.4}  {median:.4}  {min:.4}  {max:.4}  {d}");
-        modes.push(json!({"mode": mode, "mean_m": mean, "median_m": median, "min_m": min,
+        println!("{name:<12} {mean:.4}  {median:.4}  {min:.4}  {max:.4}  {d}");
+        modes.push(json!({"mode": name, "mean_m": mean, "median_m": median, "min_m": min,
             "max_m": max, "default_run_m": default}));
     }
     // The grid lists every odometry run, then the SLAM runs in the same order: pair them.
     let half = grid.len() / 2;
-    let better = (0..half).filter(|&i| ate[half + i] < ate[i]).count();
+    let better = (0..half)
+        .filter(|&i| match (ate.get(half + i), ate.get(i)) {
+            (Some(slam), Some(odometry)) => slam.final_m < odometry.final_m,
+            _ => false,
+        })
+        .count();
     println!("SLAM better than odometry in {better} of {half} paired runs (same seed and start)");
     if let Some(path) = &opts.json {
         let runs: Vec<_> = grid
             .iter()
             .zip(ate)
-            .map(|(r, a)| json!({"mode": r.mode, "seed": r.seed, "skip_frames": r.skip, "ate_rmse_m": a}))
+            .map(|(r, a)| {
+                json!({"mode": r.mode, "seed": r.seed, "skip_frames": r.skip,
+                    "ate_rmse_m": a.final_m, "ate_online_rmse_m": a.online_m})
+            })
             .collect();
-        let doc = json!({"dataset": opts.dataset, "modes": modes, "slam_better_runs": better,
+        let dataset = if opts.demo { json!("demo") } else { json!(opts.dataset) };
+        let doc = json!({"dataset": dataset, "modes": modes, "slam_better_runs": better,
             "paired_runs": half, "runs": runs});
         std::fs::write(path, serde_json::to_string_pretty(&doc)?)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -207,16 +249,18 @@ fn parse_args(args: &[String]) -> Result<Options> {
         dataset: root().join(SEVEN_SCENES),
         calibration: None,
         seeds: 0,
-        skips: (0..12).map(|k| 50 * k).collect(),
+        skips: Vec::new(),
         json: None,
+        demo: false,
         replay_args: Vec::new(),
     };
-    let mut calibration = None;
+    let (mut calibration, mut dataset) = (None, None);
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = || it.next().with_context(|| format!("{a} needs a value"));
         match a.as_str() {
-            "--dataset" => opts.dataset = PathBuf::from(value()?),
+            "--dataset" => dataset = Some(PathBuf::from(value()?)),
+            "--demo" => opts.demo = true,
             "--calibration" => calibration = Some(PathBuf::from(value()?)),
             "--seeds" => opts.seeds = value()?.parse().context("--seeds: a count")?,
             "--skips" => {
@@ -232,15 +276,26 @@ fn parse_args(args: &[String]) -> Result<Options> {
                 break;
             }
             other => bail!(
-                "unknown argument {other}; usage: cargo xtask spread [--dataset DIR] \
+                "unknown argument {other}; usage: cargo xtask spread [--dataset DIR | --demo] \
                  [--calibration FILE] [--seeds N] [--skips A,B,...] [--json FILE] \
                  [-- REPLAY ARGS]"
             ),
         }
     }
-    opts.calibration = calibration.or_else(|| crate::ci::calibration_for(&opts.dataset));
+    if opts.demo {
+        if dataset.is_some() || calibration.is_some() || opts.seeds > 0 {
+            bail!("--demo takes no --dataset, --calibration or --seeds");
+        }
+    } else {
+        opts.dataset = dataset.unwrap_or(opts.dataset);
+        opts.calibration = calibration.or_else(|| crate::ci::calibration_for(&opts.dataset));
+    }
     if opts.skips.is_empty() {
-        bail!("--skips: at least one start frame");
+        opts.skips = if opts.demo {
+            (0..16).map(|k| 3 * k).collect()
+        } else {
+            (0..12).map(|k| 50 * k).collect()
+        };
     }
     Ok(opts)
 }
@@ -259,5 +314,13 @@ mod tests {
         let o = a(&["--seeds", "0", "--", "--depth-level", "1"]).unwrap();
         assert_eq!((o.seeds, o.replay_args), (0, vec!["--depth-level".to_owned(), "1".to_owned()]));
         assert!(a(&["--frobnicate"]).unwrap_err().to_string().contains("unknown argument"));
+        assert_eq!(a(&[]).unwrap().skips, (0..12).map(|k| 50 * k).collect::<Vec<_>>());
+        let o = a(&["--demo"]).unwrap();
+        assert!(o.demo && o.calibration.is_none());
+        assert_eq!(o.skips, (0..16).map(|k| 3 * k).collect::<Vec<_>>());
+        assert_eq!(a(&["--demo", "--skips", "6"]).unwrap().skips, vec![6]);
+        for bad in [&["--demo", "--seeds", "1"][..], &["--demo", "--dataset", "d"]] {
+            assert!(a(bad).unwrap_err().to_string().contains("--demo takes no"));
+        }
     }
 }

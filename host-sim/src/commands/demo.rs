@@ -15,7 +15,7 @@ use super::report::{Report, write_odometry};
 use crate::eval;
 use crate::plot;
 use crate::synth::rng::SplitMix64;
-use crate::synth::{SynthOptions, SyntheticSequence, write_pngs};
+use crate::synth::{SynthOptions, SynthSource, SyntheticSequence, write_pngs};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Arguments of `demo`.
@@ -46,6 +46,10 @@ pub struct DemoArgs {
     /// Sweep yaw about three times faster.
     #[arg(long)]
     pub fast_rotation: bool,
+    /// Skip this many rendered frames at the start: the run starts at frame K of the path (the
+    /// ground truth covers every frame). `cargo xtask spread --demo` starts runs at several K.
+    #[arg(long, default_value_t = 0)]
+    pub skip_frames: usize,
     /// Seed of the noise, holes and shake.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -86,6 +90,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         ..SynthOptions::default()
     };
     let sequence = SyntheticSequence::new(opts)?;
+    if args.skip_frames >= sequence.len() {
+        anyhow::bail!(
+            "--skip-frames {} leaves no frame of the {} rendered (--frames)",
+            args.skip_frames,
+            sequence.len()
+        );
+    }
     let out = &args.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let gt = sequence.ground_truth_all();
@@ -94,7 +105,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     let profile = args.profile.profile();
     let depth_level = args.depth_level.unwrap_or(profile.depth_level);
-    let frames = sequence.len();
+    let frames = sequence.len() - args.skip_frames;
     let started = Instant::now();
     if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule, args.map) {
         let k = sequence.intrinsics();
@@ -112,8 +123,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         for _ in 0..profile.downsample_levels {
             cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
         }
-        let mut source =
-            ProfileSource::new(sequence.into_source(), profile.downsample_levels, depth_level);
+        let mut source = ProfileSource::new(
+            SynthSource::starting_at(sequence, args.skip_frames),
+            profile.downsample_levels,
+            depth_level,
+        );
         let tunables = Tunables {
             depth_noise_coeff_per_m: sensor_depth_noise(args.depth_noise),
             ..Tunables::default()
@@ -136,8 +150,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         println!("  wrote {}", out.display());
         return Ok(());
     }
-    let mut source =
-        ProfileSource::new(sequence.into_source(), profile.downsample_levels, depth_level);
+    let mut source = ProfileSource::new(
+        SynthSource::starting_at(sequence, args.skip_frames),
+        profile.downsample_levels,
+        depth_level,
+    );
     let run = datapath::run(&mut source, frames)?;
     let elapsed = started.elapsed().as_secs_f64();
 

@@ -23,6 +23,12 @@ impl SynthSource {
         Self { sequence, next: 0, frame }
     }
 
+    /// A source whose first frame is frame `first` of `sequence` (none at all when `first` is
+    /// past the end).
+    pub fn starting_at(sequence: SyntheticSequence, first: usize) -> Self {
+        Self { next: first, ..Self::new(sequence) }
+    }
+
     /// The sequence being played.
     pub fn sequence(&self) -> &SyntheticSequence {
         &self.sequence
