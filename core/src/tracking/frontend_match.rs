@@ -38,6 +38,15 @@ const WEAK_FRACTION: f32 = 0.6;
 /// keyframes instead of 57 in the SLAM run) and SLAM loses to odometry (0.0370 against
 /// 0.0365 m, 4 of 12); at 0.85 SLAM 0.0354 m, 8 of 12, median 6.45 M; at 0.9 most frames pay
 /// for both and the median is 8.44 M.
+///
+/// Measured and not adopted (issue 6's max): keeping a prediction under this fraction when its
+/// pose already calls for a keyframe (the keyframe renews the local map anyway). Every frame over
+/// 15 M instructions on the Cortex-M4 ran the guides and a second final stage, and 15 of the 25
+/// made a keyframe too (16.73 M on average, against 11.81 M for a keyframe after one final
+/// stage; `memory-budget.md`). With it, `cargo xtask spread` on 7-Scenes gave SLAM 0.0387 m
+/// (max 0.0534, the default run 0.0534 m, over issue 4's 0.050 m bar), better than odometry in
+/// 5 of 12 runs, against 0.0324 m and 12 of 12 (odometry 0.0368 against 0.0375 m): the
+/// keyframe's pose, which anchors its new landmarks, needs the better final stage.
 const PREDICTION_FRACTION: f32 = 0.8;
 
 /// When the motion model predicts a turn of more than this since the last frame (1 degree), the
