@@ -46,8 +46,9 @@ pub struct DemoArgs {
     /// Sweep yaw about three times faster.
     #[arg(long)]
     pub fast_rotation: bool,
-    /// Skip this many rendered frames at the start: the run starts at frame K of the path (the
-    /// ground truth covers every frame). `cargo xtask spread --demo` starts runs at several K.
+    /// Skip this many rendered frames at the start: the run starts that many frames into the
+    /// path (the ground truth covers every frame). `cargo xtask spread --demo` runs the demo
+    /// from several start frames.
     #[arg(long, default_value_t = 0)]
     pub skip_frames: usize,
     /// Seed of the noise, holes and shake.
