@@ -62,7 +62,9 @@ pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
 /// Measured with fusion on in SLAM mode too (the front end fusing each inlier's depth into its
 /// landmark between bundle adjustments; `cargo xtask spread`, 7-Scenes, 12 start frames): SLAM
 /// ATE mean 0.0373 m, online poses 0.0397 m, better than odometry in 6 of 12 runs, against
-/// 0.0324 m, 0.0353 m and 12 of 12 without. Bundle adjustment's positions are better alone.
+/// 0.0324 m, 0.0353 m and 12 of 12 without. Fusing only into landmarks that no bundle
+/// adjustment has optimized yet (so the two never move the same landmark): 0.0366 m, 0.0397 m,
+/// 8 of 12. Bundle adjustment's positions are better alone.
 pub const SLAM_FRONTEND: FrontendParams =
     FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 
