@@ -225,7 +225,17 @@ fn bad_input_is_an_error_not_a_panic() {
     assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
     let small = PinholeCamera::new(100.0, 100.0, 50.0, 50.0, 100, 100).unwrap();
     let e = fe.process(&frame(2.0, &g, &d), &small, &mut map).unwrap_err();
-    assert!(matches!(e, FrontendError::SizeMismatch { .. }));
+    let sizes = ((W, H), (W, H), (100, 100), (W, H));
+    assert!(
+        matches!(e, FrontendError::SizeMismatch { gray, depth, camera, capacity }
+            if (gray, depth, camera, capacity) == sizes),
+        "{e:?}"
+    );
+    assert_eq!(
+        std::format!("{e}"),
+        "gray image 320x240, depth covering 320x240, camera 100x100: the three must have one \
+         size, at most the 320x240 that the front end holds"
+    );
     // A map the caller cleared: the front end starts over instead of following dead ids.
     map.clear();
     let r = fe.process(&frame(3.0, &g, &d), &cam, &mut map).unwrap();
