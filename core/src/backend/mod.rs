@@ -47,7 +47,6 @@
 //! and the demo's default run went from 2.97 mm to 4.08 mm (its mean over 16 start frames from
 //! 3.07 to 2.96 mm). With segments of 8, 7-Scenes averaged 0.0362 m (max 0.0464, SLAM better
 //! than odometry in 9 of 12 runs instead of 12), and the demo gave 2.99 mm (mean 2.99 mm).
-
 //!
 //! # Capacities: the board's and the host-scale
 //!
