@@ -129,6 +129,24 @@ pub struct FrameResult {
     /// When this frame became a keyframe: the landmarks it observed that were tracked, those it
     /// re-acquired from the map (map reuse), and those it created.
     pub keyframe_landmarks: (usize, usize, usize),
+    /// The costly steps the front end ran on this frame (what its cost is made of).
+    pub work: FrontendWork,
+}
+
+/// The costly steps the front end ran on one frame: a frame's instructions are mostly these
+/// (`memory-budget.md` gives each one's cost on the Cortex-M4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FrontendWork {
+    /// Final stages run (up to `max_tracked` landmarks matched and a pose estimated), the rerun
+    /// of the winning one included.
+    pub final_stages: u8,
+    /// Guide runs (`guide_landmarks` landmarks matched with a wide search, or by the affine bank).
+    pub guide_runs: u8,
+    /// Whether the rotation was estimated from the small images.
+    pub rotation_estimated: bool,
+    /// Whether Hessian features were detected (a keyframe was made or attempted).
+    pub detected: bool,
 }
 
 /// The attempts of the guide stage, in the order they are tried (see the module documentation):
@@ -273,6 +291,8 @@ pub struct Frontend<const W: usize, const H: usize> {
     pub(super) previous_inliers: usize,
     /// The last keyframe's tracked and created landmarks.
     pub(super) last_keyframe_counts: (usize, usize, usize),
+    /// The costly steps run on the frame being processed.
+    pub(super) work: FrontendWork,
 }
 
 impl<const W: usize, const H: usize> Default for Frontend<W, H> {
@@ -317,6 +337,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             previous_t_cw: None,
             previous_inliers: 0,
             last_keyframe_counts: (0, 0, 0),
+            work: FrontendWork {
+                final_stages: 0,
+                guide_runs: 0,
+                rotation_estimated: false,
+                detected: false,
+            },
         }
     }
 
@@ -358,6 +384,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let predicted_t_cw = self.predict(frame.timestamp_s);
         self.stats.frames = self.stats.frames.saturating_add(1);
         self.frame_index = self.frame_index.wrapping_add(1);
+        self.work = FrontendWork::default();
         self.small_current.build(&frame.gray);
         // Ids of a map the caller cleared or replaced no longer resolve: start over then.
         if self.reference.is_some_and(|(id, _)| map.keyframe(id).is_none()) {
@@ -385,7 +412,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         core::mem::swap(&mut self.small_current, &mut self.small_previous);
         let keyframe_landmarks =
             if result.keyframe.is_some() { self.last_keyframe_counts } else { (0, 0, 0) };
-        Ok(FrameResult { tracked_landmarks: self.local.len(), keyframe_landmarks, ..result })
+        Ok(FrameResult {
+            tracked_landmarks: self.local.len(),
+            keyframe_landmarks,
+            work: self.work,
+            ..result
+        })
     }
 
     fn check_input(&self, frame: &RgbdFrame<'_>, cam: &PinholeCamera) -> Result<(), FrontendError> {
@@ -455,6 +487,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             guide_stage: GuideStage::None,
             tracked_landmarks: 0,
             keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
         }
     }
 
@@ -486,6 +519,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             guide_stage: summary.stage,
             tracked_landmarks: 0,
             keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
         };
         if summary.stage == GuideStage::AffineBank {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);

@@ -48,6 +48,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let kf = map.add_keyframe(t_wc, frame.timestamp_s).ok()?;
         let tracked = inliers.map_or(0, |m| self.record_inliers(frame, cam, map, kf, t_cw, m));
         let mut used: FeatureSet = [0; FEATURE_WORDS];
+        self.work.detected = true;
         let detected =
             self.detector.detect(&frame.gray, &self.params.hessian, &mut self.features).is_ok();
         let reacquired = if detected && inliers.is_some() && self.params.map_reuse {

@@ -184,6 +184,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     self.collect_candidates(cam, map, &prediction, matcher.margin());
                     spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
                     self.match_candidates(frame, cam, map, &prediction, matcher);
+                    self.work.guide_runs = self.work.guide_runs.saturating_add(1);
                     guides = self.correspondences.len();
                     let corrs = &self.correspondences;
                     match guide_pose(cam, corrs, &prediction, &p, &mut self.rng) {
@@ -229,6 +230,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         start: &Pose,
     ) -> (usize, Option<PoseEstimate>) {
         let p = self.params;
+        self.work.final_stages = self.work.final_stages.saturating_add(1);
         let fine = Matcher::Patch(&p.track);
         self.collect_candidates(cam, map, start, fine.margin());
         spread(&mut self.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
@@ -243,8 +245,9 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
 
     /// The previous frame's pose turned by the rotation the small blurry images show between it
     /// and this frame (see [`super::sbi`]), starting from the rotation `predicted_t_cw` implies.
-    fn rotation_prediction(&self, cam: &PinholeCamera, predicted_t_cw: &Pose) -> Option<Pose> {
+    fn rotation_prediction(&mut self, cam: &PinholeCamera, predicted_t_cw: &Pose) -> Option<Pose> {
         let prev = self.previous_t_cw?;
+        self.work.rotation_estimated = true;
         let initial = (predicted_t_cw * prev.inverse()).rotation;
         let r_cp = estimate_rotation(&self.small_previous, &self.small_current, cam, &initial)?;
         Some(Pose::from_parts(nalgebra::Translation3::identity(), r_cp) * prev)

@@ -115,6 +115,17 @@ fn tracks_a_known_motion_to_a_centimetre() {
                 r.guide_stage
             );
         }
+        // What the frame ran: the first is a keyframe with no tracking; later ones run at least
+        // one final stage, and detect features exactly when they make a keyframe.
+        let w = r.work;
+        if k == 0 {
+            assert_eq!((w.final_stages, w.guide_runs), (0, 0), "{w:?}");
+        } else {
+            assert!(w.final_stages >= 1, "frame {k}: {w:?}");
+            // A smooth motion needs no rotation from the small images.
+            assert!(!w.rotation_estimated, "frame {k}: {w:?}");
+        }
+        assert_eq!(w.detected, r.keyframe.is_some(), "frame {k}: {w:?}");
         // The first frame defines the world; the truth starts at the identity too.
         last_err = (r.t_wc.translation.vector - truth.translation.vector).norm();
         let rot_err = (r.t_wc.rotation.inverse() * truth.rotation).angle();

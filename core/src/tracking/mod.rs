@@ -59,8 +59,8 @@ mod select;
 mod tests;
 
 pub use frontend::{
-    FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats, GuideStage,
-    QvgaFrontend, VgaFrontend,
+    FrameResult, Frontend, FrontendError, FrontendParams, FrontendState, FrontendStats,
+    FrontendWork, GuideStage, QvgaFrontend, VgaFrontend,
 };
 pub use local_map::{
     BoardLocalMap, Insertions, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine,

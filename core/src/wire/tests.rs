@@ -7,7 +7,7 @@ use std::vec::Vec;
 
 use super::*;
 use crate::geometry::Pose;
-use crate::tracking::{FrameResult, FrontendState, GuideStage};
+use crate::tracking::{FrameResult, FrontendState, FrontendWork, GuideStage};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
 fn pose_message(i: u32) -> PoseMessage {
@@ -34,6 +34,7 @@ fn pose_message(i: u32) -> PoseMessage {
         },
         tracked_landmarks: 100,
         keyframe_landmarks: (0, 0, 0),
+        work: FrontendWork::default(),
     };
     PoseMessage::from_frame_result(i, 1_305_031_102.175_304 + f64::from(i) / 30.0, &r)
 }

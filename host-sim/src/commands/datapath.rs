@@ -206,6 +206,14 @@ pub struct OdometryFrame {
     pub recovery: bool,
     /// Whether tracking restarted at this frame after a loss.
     pub reinitialized: bool,
+    /// Final stages run (the rerun of the winning one included).
+    pub final_stages: u8,
+    /// Guide runs.
+    pub guide_runs: u8,
+    /// Whether the rotation was estimated from the small images.
+    pub rotation_estimated: bool,
+    /// Whether features were detected (a keyframe made or attempted).
+    pub detected: bool,
 }
 
 /// What the back end did over a run (SLAM mode).
@@ -380,6 +388,10 @@ pub(crate) fn frame_figures(timestamp_s: f64, r: &FrameResult) -> OdometryFrame 
         },
         recovery: r.guide_stage.is_recovery(),
         reinitialized: r.reinitialized,
+        final_stages: r.work.final_stages,
+        guide_runs: r.work.guide_runs,
+        rotation_estimated: r.work.rotation_estimated,
+        detected: r.work.detected,
     }
 }
 
