@@ -376,6 +376,10 @@ mod tests {
                 guide_stage: "motion-model",
                 recovery: false,
                 reinitialized: false,
+                final_stages: 1,
+                guide_runs: 0,
+                rotation_estimated: false,
+                detected: false,
             })
             .collect();
         let data = DataPathRun {
