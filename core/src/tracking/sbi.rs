@@ -16,13 +16,12 @@
 //!
 //! A [`SmallImage`] is 6,000 bytes. Building one reads every pixel once, four pixels a word at
 //! QVGA: 0.35 M host instructions a frame (`cargo xtask bench-frontend`, 7-Scenes). An estimate
-//! visits at most 1,200 + 4,800 pixels per iteration, at most [`MAX_ITERATIONS`] iterations per
-//! level, each pixel ~60 flops; measured on 7-Scenes (host callgrind, SLAM replay): about 6
-//! Gauss-Newton iterations in all and 6-7.5 M host instructions an estimate (before the sampling
-//! lost its per-row bounds checks and the terms their copies), paid only when the guides fail,
-//! and then the largest part of such a frame after the final stages it retries. On the
-//! Cortex-M4, frame 145 of 7-Scenes: 17,828 pixels visited, 4.93 M instructions
-//! (`memory-budget.md`).
+//! visits at most 1,200 + 4,800 pixels per iteration, each pixel ~60 flops, on the coarse level
+//! until the step is small and on the fine level for at most two steps
+//! ([`RotationParams::DEFAULT`], which says why no more); it is paid only when the guides fail,
+//! and is then, after the final stages, the largest part of such a frame. On the Cortex-M4,
+//! frame 133 of 7-Scenes: 2.15 M instructions, 4.99 M with both levels converged to 1e-4 rad
+//! (`cargo xtask profile-firmware --frames 134` less `--frames 133`; `memory-budget.md`).
 
 use nalgebra::{Matrix5, Point3, Rotation3, UnitQuaternion, Vector3, Vector5};
 
@@ -33,8 +32,40 @@ use crate::image::GrayView;
 pub const SMALL_W: usize = 80;
 /// Height of the fine level, pixels.
 pub const SMALL_H: usize = 60;
-/// Gauss-Newton iterations per level at most.
-pub const MAX_ITERATIONS: usize = 12;
+/// How far [`estimate_rotation_with`] iterates Gauss-Newton on each level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RotationParams {
+    /// Iterations on the coarse level (40 x 30) at most.
+    pub coarse_iterations: usize,
+    /// Iterations on the fine level (80 x 60) at most, from the coarse level's solution.
+    pub fine_iterations: usize,
+    /// A level stops iterating when the rotation step is below this, radians.
+    pub stop_step_rad: f32,
+}
+
+impl RotationParams {
+    /// The front end's: the coarse level to a step of 1e-3 rad (0.06 degrees, a quarter of a
+    /// QVGA pixel at a 262-pixel focal length), then at most two steps on the fine level.
+    ///
+    /// The estimate's error is set by its model (pure rotation, while the camera also
+    /// translates), not by how far Gauss-Newton converges. Against ground truth
+    /// (`tests/tests/rotation_real.rs`: every pair of consecutive 7-Scenes frames, and pairs three
+    /// frames apart) these settings are as close to the truth as [`Self::CONVERGED`] (median
+    /// error 0.23 degrees one frame apart), and so they were on the demo's fast-rotation variant
+    /// (0.11 degrees mean, exact ground truth; a temporary harness). On the 16 frames where the
+    /// 7-Scenes replays estimated the rotation with the converged settings, these visit 9,246
+    /// pixels a call on average against 14,552; on the Cortex-M4 the frames that estimate it
+    /// without making a keyframe cost at most 15.5 M instructions instead of 17.3 M
+    /// (`memory-budget.md`). The guides that start from the estimate search 3 pixels, about 0.7
+    /// degrees at QVGA.
+    pub const DEFAULT: Self =
+        Self { coarse_iterations: 12, fine_iterations: 2, stop_step_rad: 1.0e-3 };
+
+    /// Both levels converged to a step of 1e-4 rad (at most 12 iterations each): the front end's
+    /// settings until the measurement above.
+    pub const CONVERGED: Self =
+        Self { coarse_iterations: 12, fine_iterations: 12, stop_step_rad: 1.0e-4 };
+}
 
 const COARSE_W: usize = SMALL_W / 2;
 /// Largest block size: images up to 640 x 480.
@@ -260,6 +291,17 @@ pub fn estimate_rotation(
     cam: &PinholeCamera,
     initial: &UnitQuaternion<f32>,
 ) -> Option<UnitQuaternion<f32>> {
+    estimate_rotation_with(prev, cur, cam, initial, &RotationParams::DEFAULT)
+}
+
+/// [`estimate_rotation`] iterating as `params` says.
+pub fn estimate_rotation_with(
+    prev: &SmallImage,
+    cur: &SmallImage,
+    cam: &PinholeCamera,
+    initial: &UnitQuaternion<f32>,
+    params: &RotationParams,
+) -> Option<UnitQuaternion<f32>> {
     if !prev.is_built() || prev.block != cur.block {
         return None;
     }
@@ -268,7 +310,8 @@ pub fn estimate_rotation(
     let mut rms = f32::INFINITY;
     for coarse in [true, false] {
         let (lp, lc) = (Level::of(prev, cam, coarse), Level::of(cur, cam, coarse));
-        for _ in 0..MAX_ITERATIONS {
+        let iterations = if coarse { params.coarse_iterations } else { params.fine_iterations };
+        for _ in 0..iterations {
             let (h, g, n, sq) = normal_equations(&lp, &lc, &r, photo)?;
             let min_n = MIN_OVERLAP * (lp.w * lp.h) as f32;
             if (n as f32) < min_n {
@@ -282,7 +325,7 @@ pub fn estimate_rotation(
             }
             r = so3_exp(&w) * r;
             photo = (photo.0 + delta[3], photo.1 + delta[4]);
-            if w.norm() < 1.0e-4 {
+            if w.norm() < params.stop_step_rad {
                 break;
             }
         }
