@@ -11,7 +11,9 @@ use crate::matching::{MatchParams, TrackParams};
 pub struct FrontendParams {
     /// Feature detection for new keyframes. Default: [`HessianParams::default`] with the
     /// threshold lowered from 100 to 30 (at 100, QVGA Kinect frames of 7-Scenes give only ~40
-    /// landmarks per keyframe; at 30 about 130).
+    /// landmarks per keyframe; at 30 about 130). Both pyramid levels: with the image level only
+    /// (`octaves` 1, about half the detector's work) 7-Scenes SLAM went 0.0331 -> 0.0362 m over
+    /// `cargo xtask spread`, better than odometry in 7 of 12 runs (`memory-budget.md`).
     pub hessian: HessianParams,
     /// Guide stage: `guide_landmarks` landmarks tracked from the motion-model prediction with a
     /// wide search. Default [`TrackParams::GUIDE`].
@@ -63,6 +65,12 @@ pub struct FrontendParams {
     pub min_inliers: usize,
     /// Keyframe rule: new keyframe when the inliers fall below this fraction of the inliers the
     /// frame after the last keyframe had. Default 0.7.
+    ///
+    /// A keyframe is made on the frame the rule fires on, even one that already ran a second
+    /// final stage (the costliest frames on the board). Put off to the next tracked frame then
+    /// (at most two in a row), `cargo xtask spread --seeds 3` gave odometry 0.0383 -> 0.0364 m
+    /// but SLAM 0.0332 -> 0.0341 m, its online poses 0.0349 -> 0.0371 m, better than odometry
+    /// in 42 of 48 runs instead of 48 (`memory-budget.md`).
     pub keyframe_inlier_ratio: f32,
     /// Keyframe rule: new keyframe when inliers `<` this. Default 56 (see `max_tracked`).
     pub keyframe_min_inliers: usize,
