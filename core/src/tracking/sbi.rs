@@ -53,8 +53,8 @@ impl RotationParams {
     /// frames apart) these settings are as close to the truth as [`Self::CONVERGED`] (median
     /// error 0.23 degrees one frame apart), and so they were on the demo's fast-rotation variant
     /// (0.11 degrees mean, exact ground truth; a temporary harness). On the 16 frames where the
-    /// 7-Scenes replays estimated the rotation with the converged settings, these visit 9,246
-    /// pixels a call on average against 14,552; on the Cortex-M4 the frames that estimate it
+    /// 7-Scenes replays estimated the rotation with the converged settings, started from no
+    /// rotation, these visit 9,246 pixels a call on average against 14,552; on the Cortex-M4 the frames that estimate it
     /// without making a keyframe cost at most 15.5 M instructions instead of 17.3 M
     /// (`memory-budget.md`). The guides that start from the estimate search 3 pixels, about 0.7
     /// degrees at QVGA.
