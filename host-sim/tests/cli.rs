@@ -291,3 +291,15 @@ fn the_host_scale_map_matches_the_board_map_while_both_have_room() {
     assert_eq!(board_trajectory, host_trajectory);
     assert!(host["state_bytes"].as_u64().unwrap() > board["state_bytes"].as_u64().unwrap());
 }
+
+#[test]
+fn window_levels_reach_the_back_end_and_zero_is_refused() {
+    let (_, default, _) = demo_outputs(&["--frames", "30"]);
+    assert_eq!(default["backend"]["window_levels"], 2, "the board's default");
+    let (_, wide, _) = demo_outputs(&["--frames", "30", "--map", "host", "--window-levels", "255"]);
+    assert_eq!(wide["backend"]["window_levels"], 255);
+    assert_eq!(wide["backend"]["map_scale"], "host");
+    let run = sim(&["demo", "--frames", "5", "--window-levels", "0"]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(stderr(&run).contains("--window-levels"), "{}", stderr(&run));
+}

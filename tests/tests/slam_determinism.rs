@@ -4,6 +4,7 @@
 //! thread or on the front end's; and a different quota gives a different (but still valid) run,
 //! so the test is not vacuous.
 
+use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::QVGA;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
@@ -25,7 +26,12 @@ fn replay(quota: u32, schedule: Schedule) -> OdometryRun {
         FRAMES,
         &cam,
         QVGA,
-        TrackMode::Slam { quota, schedule, map: MapScale::Board },
+        TrackMode::Slam {
+            quota,
+            schedule,
+            map: MapScale::Board,
+            window_levels: BackendParams::DEFAULT.window_levels,
+        },
     )
     .unwrap()
 }

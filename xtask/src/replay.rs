@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
+use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
@@ -163,6 +164,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
         quota: DEFAULT_BACKEND_QUOTA,
         schedule: Schedule::Threaded,
         map: MapScale::Board,
+        window_levels: BackendParams::DEFAULT.window_levels,
     };
     let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();

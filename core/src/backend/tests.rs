@@ -222,3 +222,56 @@ fn fill_a_65_keyframe_window() {
         "the newest keyframe moved toward the truth: {before} -> {after} m"
     );
 }
+
+/// The window grows by one covisibility level at a time: in a chain of keyframes where each
+/// shares landmarks only with its neighbours, the newest keyframe's window holds it and one more
+/// keyframe per level, and `u8::MAX` levels take the whole chain (the window stops when no
+/// keyframe joins).
+#[test]
+fn each_covisibility_level_adds_the_next_keyframe_of_a_chain() {
+    use nalgebra::Point3;
+
+    use super::BaKind;
+    use crate::config::capacity::MAX_KEYFRAMES;
+    use crate::geometry::Pose;
+    use crate::map::{KeyFrameId, Observation};
+
+    const KEYFRAMES: usize = 12;
+    const SHARED: usize = 12;
+    let cam = camera();
+    let window_of = |levels: u8| {
+        let mut map = std::boxed::Box::new(BoardMap::new());
+        let kfs: std::vec::Vec<KeyFrameId> = (0..KEYFRAMES)
+            .map(|i| map.add_keyframe(Pose::translation(0.01 * i as f32, 0.0, 0.0), i as f64))
+            .collect::<Result<_, _>>()
+            .unwrap();
+        // Link i joins keyframes i and i + 1 with its own landmarks, seen by those two only.
+        for link in 0..KEYFRAMES - 1 {
+            for j in 0..SHARED {
+                let p = Point3::new(-0.5 + 0.08 * j as f32, -0.2 + 0.04 * link as f32, 2.5);
+                let lm = map.add_landmark(p, kfs[link]).unwrap();
+                for &k in &kfs[link..=link + 1] {
+                    let t_cw = map.keyframe(k).unwrap().t_wc.inverse();
+                    let p_c = t_cw * p;
+                    let uv = cam.project(&p_c).unwrap();
+                    let obs = Observation::new(lm, (uv.x, uv.y), Some(p_c.z)).unwrap();
+                    map.add_observation(k, obs).unwrap();
+                }
+            }
+        }
+        let params = BackendParams { window_levels: levels, ..BackendParams::DEFAULT };
+        let mut backend = std::boxed::Box::new(BoardBackend::with_params(params));
+        let newest = KEYFRAMES - 1;
+        backend.keyframe_added(kfs[newest], newest as u32);
+        assert_eq!(backend.step(&mut map, &cam, 5_000), Ok(BackendStatus::Built(BaKind::Local)));
+        let sizes = &backend.stats().window_sizes;
+        let built: std::vec::Vec<usize> = (0..sizes.len()).filter(|&n| sizes[n] > 0).collect();
+        assert_eq!(built.len(), 1, "one window built: {built:?}");
+        built[0]
+    };
+    const { assert!(KEYFRAMES <= MAX_KEYFRAMES) };
+    assert_eq!(window_of(1), 2);
+    assert_eq!(window_of(2), 3, "the default");
+    assert_eq!(window_of(5), 6);
+    assert_eq!(window_of(u8::MAX), KEYFRAMES, "the whole chain");
+}

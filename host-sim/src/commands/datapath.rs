@@ -227,6 +227,9 @@ pub struct BackendReport {
     pub schedule: &'static str,
     /// Whether the run is deterministic (the same input gives the same bits): all but realtime.
     pub deterministic: bool,
+    /// Covisibility levels a local window grows by (`--window-levels`; the board's 2 unless
+    /// told).
+    pub window_levels: u8,
     /// Local bundle adjustments finished.
     pub local_runs: u32,
     /// Segmented global bundle adjustments finished.
@@ -268,6 +271,9 @@ pub enum TrackMode {
         schedule: Schedule,
         /// The capacities of the map and the back end.
         map: MapScale,
+        /// Covisibility levels a local BA's window grows by (`BackendParams::window_levels`;
+        /// the default, 2, is the board's).
+        window_levels: u8,
     },
 }
 
@@ -347,7 +353,10 @@ where
         p.with_tunables(tunables)
     };
     let (odometry, slam) = (seeded(FrontendParams::DEFAULT), seeded(SLAM_FRONTEND));
-    let backend = BackendParams::DEFAULT.with_tunables(tunables);
+    let mut backend = BackendParams::DEFAULT.with_tunables(tunables);
+    if let TrackMode::Slam { window_levels, .. } = mode {
+        backend.window_levels = window_levels;
+    }
     match (mode, profile.downsample_levels == 0) {
         (TrackMode::Odometry, true) => {
             odometry_with::<640, 480, S>(source, expected, cam, odometry)
@@ -355,10 +364,10 @@ where
         (TrackMode::Odometry, false) => {
             odometry_with::<320, 240, S>(source, expected, cam, odometry)
         }
-        (TrackMode::Slam { quota, schedule, map }, true) => super::slam::run::<640, 480, S>(
+        (TrackMode::Slam { quota, schedule, map, .. }, true) => super::slam::run::<640, 480, S>(
             source, expected, cam, quota, schedule, map, slam, backend,
         ),
-        (TrackMode::Slam { quota, schedule, map }, false) => super::slam::run::<320, 240, S>(
+        (TrackMode::Slam { quota, schedule, map, .. }, false) => super::slam::run::<320, 240, S>(
             source, expected, cam, quota, schedule, map, slam, backend,
         ),
     }

@@ -48,18 +48,19 @@ pub enum ModeArg {
 }
 
 impl ModeArg {
-    /// The tracker mode, with `quota` back-end units per frame, `schedule` and the map's
-    /// `scale` in SLAM mode.
+    /// The tracker mode, with `quota` back-end units per frame, `schedule`, the map scale `map`
+    /// and the local window's `window_levels` in SLAM mode.
     pub fn track_mode(
         self,
         quota: u32,
         schedule: datapath::Schedule,
         map: datapath::MapScale,
+        window_levels: u8,
     ) -> Option<datapath::TrackMode> {
         match self {
             Self::DataPath => None,
             Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule, map }),
+            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule, map, window_levels }),
         }
     }
 
@@ -110,6 +111,13 @@ pub struct ReplayArgs {
     /// The capacities of the map and the back end (SLAM mode).
     #[arg(long, value_enum, default_value = "board")]
     pub map: datapath::MapScale,
+    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
+    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
+    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
+    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
+    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
+          value_parser = clap::value_parser!(u8).range(1..))]
+    pub window_levels: u8,
     /// Seed of the front end's RANSAC (default: the core's). Runs with other seeds show how
     /// much of an accuracy figure is chance (`cargo xtask spread`).
     #[arg(long)]
@@ -145,7 +153,9 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
     let gt = dataset.groundtruth_trajectory().cloned();
-    if let Some(track_mode) = args.mode.track_mode(args.backend_quota, args.schedule, args.map) {
+    if let Some(track_mode) =
+        args.mode.track_mode(args.backend_quota, args.schedule, args.map, args.window_levels)
+    {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;

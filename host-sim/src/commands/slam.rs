@@ -457,6 +457,7 @@ fn backend_report<
         work_quota_per_frame: quota,
         schedule: schedule.name(),
         deterministic: schedule != Schedule::Realtime,
+        window_levels: slam.backend().params().window_levels,
         local_runs: b.local_runs,
         global_runs: b.global_runs,
         window_mean: if windows > 0 { weighted as f64 / f64::from(windows) } else { 0.0 },
