@@ -10,7 +10,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use super::datapath::{self, ProfileSource, depth_level_parser};
-use super::replay::{ModeArg, ProfileArg, summary};
+use super::replay::{ModeArg, ProfileArg, SlamArgs, summary};
 use super::report::{Report, write_odometry};
 use crate::eval;
 use crate::plot;
@@ -59,22 +59,9 @@ pub struct DemoArgs {
     /// estimate).
     #[arg(long, value_enum, default_value = "slam")]
     pub mode: ModeArg,
-    /// Back-end work units after each frame (SLAM mode).
-    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
-    pub backend_quota: u32,
-    /// How the back end runs beside the front end (SLAM mode).
-    #[arg(long, value_enum, default_value = "threaded")]
-    pub schedule: datapath::Schedule,
-    /// The capacities of the map and the back end (SLAM mode).
-    #[arg(long, value_enum, default_value = "board")]
-    pub map: datapath::MapScale,
-    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
-    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
-    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
-    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
-    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
-          value_parser = clap::value_parser!(u8).range(1..))]
-    pub window_levels: u8,
+    /// How SLAM mode runs its back end.
+    #[command(flatten)]
+    pub slam: SlamArgs,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
     /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
@@ -115,9 +102,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let depth_level = args.depth_level.unwrap_or(profile.depth_level);
     let frames = sequence.len() - args.skip_frames;
     let started = Instant::now();
-    if let Some(track_mode) =
-        args.mode.track_mode(args.backend_quota, args.schedule, args.map, args.window_levels)
-    {
+    if let Some(track_mode) = args.mode.track_mode(&args.slam) {
         let k = sequence.intrinsics();
         #[allow(clippy::cast_possible_truncation)] // intrinsics are exact in f32
         let sensor = PinholeCamera::new(

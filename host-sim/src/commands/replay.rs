@@ -48,19 +48,17 @@ pub enum ModeArg {
 }
 
 impl ModeArg {
-    /// The tracker mode, with `quota` back-end units per frame, `schedule`, the map scale `map`
-    /// and the local window's `window_levels` in SLAM mode.
-    pub fn track_mode(
-        self,
-        quota: u32,
-        schedule: datapath::Schedule,
-        map: datapath::MapScale,
-        window_levels: u8,
-    ) -> Option<datapath::TrackMode> {
+    /// The tracker mode, run in SLAM mode as `slam` says.
+    pub fn track_mode(self, slam: &SlamArgs) -> Option<datapath::TrackMode> {
         match self {
             Self::DataPath => None,
             Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam { quota, schedule, map, window_levels }),
+            Self::Slam => Some(datapath::TrackMode::Slam {
+                quota: slam.backend_quota,
+                schedule: slam.schedule,
+                map: slam.map,
+                window_levels: slam.window_levels,
+            }),
         }
     }
 
@@ -72,6 +70,27 @@ impl ModeArg {
             Self::Slam => "slam",
         }
     }
+}
+
+/// The back-end options of SLAM mode, shared by `replay` and `demo`.
+#[derive(Debug, Args)]
+pub struct SlamArgs {
+    /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
+    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
+    pub backend_quota: u32,
+    /// How the back end runs beside the front end (SLAM mode).
+    #[arg(long, value_enum, default_value = "threaded")]
+    pub schedule: datapath::Schedule,
+    /// The capacities of the map and the back end (SLAM mode).
+    #[arg(long, value_enum, default_value = "board")]
+    pub map: datapath::MapScale,
+    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
+    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
+    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
+    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
+    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
+          value_parser = clap::value_parser!(u8).range(1..))]
+    pub window_levels: u8,
 }
 
 /// Arguments of `replay`.
@@ -102,22 +121,9 @@ pub struct ReplayArgs {
     /// What runs on each frame.
     #[arg(long, value_enum, default_value = "slam")]
     pub mode: ModeArg,
-    /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
-    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
-    pub backend_quota: u32,
-    /// How the back end runs beside the front end (SLAM mode).
-    #[arg(long, value_enum, default_value = "threaded")]
-    pub schedule: datapath::Schedule,
-    /// The capacities of the map and the back end (SLAM mode).
-    #[arg(long, value_enum, default_value = "board")]
-    pub map: datapath::MapScale,
-    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
-    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
-    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
-    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
-    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
-          value_parser = clap::value_parser!(u8).range(1..))]
-    pub window_levels: u8,
+    /// How SLAM mode runs its back end.
+    #[command(flatten)]
+    pub slam: SlamArgs,
     /// Seed of the front end's RANSAC (default: the core's). Runs with other seeds show how
     /// much of an accuracy figure is chance (`cargo xtask spread`).
     #[arg(long)]
@@ -153,9 +159,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
     let gt = dataset.groundtruth_trajectory().cloned();
-    if let Some(track_mode) =
-        args.mode.track_mode(args.backend_quota, args.schedule, args.map, args.window_levels)
-    {
+    if let Some(track_mode) = args.mode.track_mode(&args.slam) {
         let c = dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
