@@ -44,20 +44,19 @@ pub struct RotationParams {
 }
 
 impl RotationParams {
-    /// The front end's: the coarse level to a step of 1e-3 rad (0.06 degrees, a quarter of a
-    /// QVGA pixel at a 262-pixel focal length), then at most two steps on the fine level.
+    /// The front end's: the coarse level to a step of 1e-3 rad (0.06 degrees, a quarter of a QVGA
+    /// pixel at a 262-pixel focal length), then at most two steps on the fine level.
     ///
-    /// The estimate's error is set by its model (pure rotation, while the camera also
-    /// translates), not by how far Gauss-Newton converges. Against ground truth
-    /// (`tests/tests/rotation_real.rs`: every pair of consecutive 7-Scenes frames, and pairs three
-    /// frames apart) these settings are as close to the truth as [`Self::CONVERGED`] (median
-    /// error 0.23 degrees one frame apart), and so they were on the demo's fast-rotation variant
-    /// (0.11 degrees mean, exact ground truth; a temporary harness). On the 16 frames where the
-    /// 7-Scenes replays estimated the rotation with the converged settings, started from no
-    /// rotation, these visit 9,246 pixels a call on average against 14,552; on the Cortex-M4 the frames that estimate it
-    /// without making a keyframe cost at most 15.5 M instructions instead of 17.3 M
-    /// (`memory-budget.md`). The guides that start from the estimate search 3 pixels, about 0.7
-    /// degrees at QVGA.
+    /// The estimate's error is set by its model (pure rotation, while the camera also translates),
+    /// not by how far Gauss-Newton converges. Against ground truth (`tests/tests/rotation_real.rs`:
+    /// every pair of consecutive 7-Scenes frames, and pairs three frames apart) these settings are
+    /// as close to the truth as [`Self::CONVERGED`] (median error 0.23 degrees one frame apart),
+    /// and so they were on the demo's fast-rotation variant (0.11 degrees mean, exact ground truth;
+    /// a temporary harness). On the 16 frames where the 7-Scenes replays estimated the rotation
+    /// with the converged settings, started from no rotation, these visit 9,246 pixels a call on
+    /// average against 14,552; on the Cortex-M4 the frames that estimate it without making a
+    /// keyframe cost at most 15.5 M instructions instead of 17.3 M (`memory-budget.md`). The guides
+    /// that start from the estimate search 3 pixels, about 0.7 degrees at QVGA.
     pub const DEFAULT: Self =
         Self { coarse_iterations: 12, fine_iterations: 2, stop_step_rad: 1.0e-3 };
 
