@@ -12,7 +12,7 @@ use nalgebra::Point3;
 
 use super::datapath::{self, depth_level_parser};
 use super::report::{Report, write_odometry};
-use crate::dataset::{CalibrationSource, Dataset, DatasetOptions};
+use crate::dataset::{CalibrationOrigin, CalibrationSource, Dataset, DatasetOptions};
 use crate::plot;
 
 /// The processing resolution.
@@ -155,6 +155,10 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     };
     let dataset = Dataset::open(&args.dataset, &opts)?;
     let depth_level = dataset.depth_level();
+    let calibration_note = calibration_note(&dataset);
+    if let CalibrationOrigin::FolderName(_) = dataset.calibration_origin() {
+        eprintln!("note: {calibration_note}");
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let (frames, skipped) = (dataset.len(), dataset.skipped().len());
@@ -179,6 +183,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             run_note(args.mode, profile.name, (run.data.width, run.data.height)),
             depth_level,
         );
+        let note = format!("{note}; {calibration_note}");
         let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
         println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
         return Ok(());
@@ -222,6 +227,17 @@ pub fn run_note(mode: ModeArg, profile: &str, (width, height): (usize, usize)) -
             "odometry: frame-to-map front end at {profile} ({width}x{height}), depth fused into \
              the landmarks; no bundle adjustment, no loop closure"
         ),
+    }
+}
+
+/// Where the dataset's calibration came from, and whether a lens distortion is removed from its
+/// frames, for the report's note.
+fn calibration_note(dataset: &Dataset) -> String {
+    let origin = dataset.calibration_origin();
+    if dataset.sensor_calibration().distortion.is_none() {
+        format!("calibration: {origin}")
+    } else {
+        format!("calibration: {origin}, lens distortion removed from the frames")
     }
 }
 

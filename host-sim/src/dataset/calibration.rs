@@ -11,7 +11,8 @@ use super::lists::read_text;
 ///
 /// Pixel coordinates have their origin at the centre of the top-left pixel, x to the right, y
 /// downwards (the convention of the TUM and 7-Scenes calibrations and of the core's image views).
-/// No lens distortion is modelled: distortion coefficients in a file are ignored.
+/// A lens distortion ([`Calibration::distortion`]) is removed from the frames as they are decoded
+/// (see [`super::undistort`]); the core sees a pinhole camera with the same intrinsics.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Calibration {
     /// Focal length along x, in pixels.
@@ -32,6 +33,26 @@ pub struct Calibration {
     /// `[depth]` table of `calibration.toml`); `None` when they are (every preset, and the
     /// frames [`super::Dataset::load_frame`] gives, which it registers).
     pub depth: Option<DepthCamera>,
+    /// The colour camera's lens distortion ([`Distortion::NONE`] for a pinhole camera, and for the
+    /// frames [`super::Dataset::load_frame`] gives, which it undistorts).
+    pub distortion: Distortion,
+}
+
+/// A lens distortion in OpenCV's model (radial `k1`, `k2`, `k3` and tangential `p1`, `p2`; TUM
+/// calls them `d0` to `d4` in the order `k1 k2 p1 p2 k3`), on normalized image coordinates: see
+/// [`Distortion::distort`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Distortion {
+    /// Radial coefficient of `r^2`.
+    pub k1: f32,
+    /// Radial coefficient of `r^4`.
+    pub k2: f32,
+    /// First tangential coefficient.
+    pub p1: f32,
+    /// Second tangential coefficient.
+    pub p2: f32,
+    /// Radial coefficient of `r^6`.
+    pub k3: f32,
 }
 
 /// A depth camera beside the colour camera, for depth images that are not registered to colour
@@ -96,24 +117,48 @@ impl Calibration {
             Some(toml::Value::Table(t)) => Some(depth_camera(t, path)?),
             Some(other) => return Err(wrong_type(path, "depth", other, "must be a table")),
         };
-        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale, depth };
+        let distortion = distortion(&table, path)?;
+        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale, depth, distortion };
         calibration.validate(path)?;
         Ok(calibration)
     }
 
-    /// TUM RGB-D's published intrinsics (the ROS defaults) for the Freiburg 1, 2 and 3 sensors,
-    /// `"tum1"`, `"tum2"`, `"tum3"`: 640x480, depth scale 5000 (raw units per metre).
+    /// TUM RGB-D's published calibration of the Freiburg 1, 2 and 3 colour cameras, `"tum1"`,
+    /// `"tum2"`, `"tum3"` (the intrinsics and distortion of the benchmark's "file formats" page):
+    /// 640x480, depth scale 5000 (raw units per metre), depth registered to colour by the sensor.
+    /// Freiburg 1 and 2 recorded images that are not undistorted, so their presets carry the
+    /// distortion that goes with their intrinsics (`d0..d4` there); Freiburg 3's images were
+    /// undistorted when recorded (zero distortion).
     ///
     /// # Errors
     /// [`DatasetError::UnknownPreset`] for any other name.
     pub fn preset(name: &str) -> Result<Self, DatasetError> {
-        let (fx, fy, cx, cy) = match name {
-            "tum1" => (517.3, 516.5, 318.6, 255.3),
-            "tum2" => (520.9, 521.0, 325.1, 249.7),
-            "tum3" => (535.4, 539.2, 320.1, 247.6),
+        let (fx, fy, cx, cy, [k1, k2, p1, p2, k3]) = match name {
+            "tum1" => (517.3, 516.5, 318.6, 255.3, [0.2624, -0.9531, -0.0054, 0.0026, 1.1633]),
+            "tum2" => (520.9, 521.0, 325.1, 249.7, [0.2312, -0.7849, -0.0033, -0.0001, 0.9172]),
+            "tum3" => (535.4, 539.2, 320.1, 247.6, [0.0; 5]),
             _ => return Err(DatasetError::UnknownPreset { name: name.to_owned() }),
         };
-        Ok(Self { fx, fy, cx, cy, width: 640, height: 480, depth_scale: 5000.0, depth: None })
+        let distortion = Distortion { k1, k2, p1, p2, k3 };
+        let (width, height, depth_scale) = (640, 480, 5000.0);
+        Ok(Self { fx, fy, cx, cy, width, height, depth_scale, depth: None, distortion })
+    }
+
+    /// The preset a TUM RGB-D folder's name implies (`rgbd_dataset_freiburg1_xyz` and the like:
+    /// the benchmark names every sequence after its sensor), if exactly one of `freiburg1`,
+    /// `freiburg2`, `freiburg3` occurs in the folder's last name.
+    pub fn preset_for_folder(dir: &Path) -> Option<&'static str> {
+        let name = dir.file_name()?.to_str()?.to_ascii_lowercase();
+        let found: Vec<&'static str> =
+            [("freiburg1", "tum1"), ("freiburg2", "tum2"), ("freiburg3", "tum3")]
+                .into_iter()
+                .filter(|(sensor, _)| name.contains(sensor))
+                .map(|(_, preset)| preset)
+                .collect();
+        match found.as_slice() {
+            [one] => Some(one),
+            _ => None,
+        }
     }
 
     /// Checks every value: finite and positive, principal point inside the image, size non-zero.
@@ -209,6 +254,44 @@ fn depth_camera(table: &toml::Table, path: &Path) -> Result<DepthCamera, Dataset
     Ok(DepthCamera { fx, fy, cx, cy, t_m: [tx, ty, tz] })
 }
 
+/// The distortion keys of `calibration.toml`, in [`Distortion`]'s field order.
+const DISTORTION_KEYS: [&str; 5] = ["k1", "k2", "p1", "p2", "k3"];
+
+/// TUM's names of the distortion keys, and what to write instead.
+const TUM_DISTORTION_KEYS: [(&str, &str); 5] = [
+    ("d0", "is TUM's name of k1: write the distortion as k1, k2, p1, p2, k3"),
+    ("d1", "is TUM's name of k2: write the distortion as k1, k2, p1, p2, k3"),
+    ("d2", "is TUM's name of p1: write the distortion as k1, k2, p1, p2, k3"),
+    ("d3", "is TUM's name of p2: write the distortion as k1, k2, p1, p2, k3"),
+    ("d4", "is TUM's name of k3: write the distortion as k1, k2, p1, p2, k3"),
+];
+
+/// The largest distortion coefficient taken as real: real lenses stay far below it, so a larger
+/// value is a typing mistake.
+const MAX_DISTORTION: f64 = 100.0;
+
+/// The optional distortion keys (each 0 when absent). TUM's names `d0..d4` are refused rather than
+/// ignored: a distortion silently dropped would bend every trajectory.
+fn distortion(table: &toml::Table, path: &Path) -> Result<Distortion, DatasetError> {
+    for (key, reason) in TUM_DISTORTION_KEYS {
+        if let Some(value) = table.get(key) {
+            return Err(wrong_type(path, key, value, reason));
+        }
+    }
+    let mut k = [0.0f32; 5];
+    for (slot, key) in k.iter_mut().zip(DISTORTION_KEYS) {
+        if table.contains_key(key) {
+            let (v, value) = number_key(table, path, key, key)?;
+            if !(v.is_finite() && v.abs() < MAX_DISTORTION) {
+                return Err(wrong_type(path, key, value, "must be a finite number within +-100"));
+            }
+            *slot = v as f32;
+        }
+    }
+    let [k1, k2, p1, p2, k3] = k;
+    Ok(Distortion { k1, k2, p1, p2, k3 })
+}
+
 /// The number (a TOML float or integer) under `name` in `table`, and its TOML value; `key` is
 /// what errors call it (the name with its table, e.g. `depth.fx`).
 fn number_key<'t>(
@@ -272,7 +355,7 @@ mod tests {
     use super::*;
 
     const GOOD: &str = "fx = 585.0\nfy = 585\ncx = 320.0\ncy = 240.0\nwidth = 640\nheight = 480\n\
-                        depth_scale = 1000.0\nd0 = 0.1 # distortion, ignored\n";
+                        depth_scale = 1000.0\nrig = \"kinect\" # other keys are ignored\n";
 
     #[test]
     fn a_valid_file_parses() {
@@ -351,9 +434,32 @@ mod tests {
     }
 
     #[test]
-    fn presets_are_tum_ros_defaults() {
+    fn distortion_keys_are_optional_and_checked() {
+        let path = Path::new("c.toml");
+        let c = Calibration::from_toml_str(GOOD, path).unwrap();
+        assert_eq!(c.distortion, Distortion::NONE);
+        let text = format!("{GOOD}k1 = 0.25\nk2 = -1\np1 = -0.005\np2 = 0.002\nk3 = 1.1\n");
+        let d = Calibration::from_toml_str(&text, path).unwrap().distortion;
+        assert_eq!(d, Distortion { k1: 0.25, k2: -1.0, p1: -0.005, p2: 0.002, k3: 1.1 });
+        for (line, key) in [("k2 = nan", "k2"), ("p1 = 1e3", "p1"), ("k3 = \"1\"", "k3")] {
+            let err = Calibration::from_toml_str(&format!("{GOOD}{line}\n"), path).unwrap_err();
+            assert!(
+                matches!(&err, DatasetError::CalibrationValue { key: k, .. } if *k == key),
+                "{line}: {err}"
+            );
+        }
+        // TUM's names are refused, not ignored.
+        let err = Calibration::from_toml_str(&format!("{GOOD}d0 = 0.26\n"), path).unwrap_err();
+        assert!(err.to_string().contains("TUM's name of k1"), "{err}");
+    }
+
+    #[test]
+    fn presets_are_tums_published_calibrations() {
         let c = Calibration::preset("tum3").unwrap();
         assert_eq!((c.fx, c.fy, c.cx, c.cy), (535.4, 539.2, 320.1, 247.6));
+        assert_eq!(c.distortion, Distortion::NONE);
+        let d = Calibration::preset("tum1").unwrap().distortion;
+        assert_eq!(d, Distortion { k1: 0.2624, k2: -0.9531, p1: -0.0054, p2: 0.0026, k3: 1.1633 });
         assert_eq!((c.width, c.height, c.depth_scale), (640, 480, 5000.0));
         assert!(Calibration::preset("tum1").unwrap().validate(Path::new("p")).is_ok());
         assert!(Calibration::preset("tum2").unwrap().validate(Path::new("p")).is_ok());

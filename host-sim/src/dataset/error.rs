@@ -24,6 +24,18 @@ pub enum DatasetError {
         source: std::io::Error,
     },
 
+    /// A dataset folder has no `calibration.toml`, none was given, and its name names no TUM
+    /// sensor.
+    #[error(
+        "{} has no calibration.toml: give one with --calibration FILE, or a TUM sensor's with \
+         --preset tum1|tum2|tum3",
+        dir.display()
+    )]
+    NoCalibration {
+        /// The dataset folder.
+        dir: PathBuf,
+    },
+
     /// A list line has the wrong number of fields.
     #[error("{}:{line}: expected '{expected}', got {text:?}", path.display())]
     FieldCount {

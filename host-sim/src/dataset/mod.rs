@@ -3,9 +3,12 @@
 //! A dataset folder holds `rgb.txt` and `depth.txt` (`timestamp path` lines), an optional
 //! `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, camera to world) and, unless a preset or
 //! another file is chosen, `calibration.toml` (see [`Calibration`]; depth that is not registered
-//! to colour is registered as it is decoded, see [`registration`]). Opening one ([`Dataset::open`]) parses the
-//! lists, checks which listed images exist, associates colour to depth by timestamp and validates
-//! the calibration; it decodes nothing. Frames are decoded one at a time with
+//! to colour is registered as it is decoded, see [`registration`]; a lens distortion is removed as
+//! the frames are decoded, see [`undistort`]). A folder without `calibration.toml` whose name names
+//! a TUM sensor (`rgbd_dataset_freiburg1_xyz`) takes that sensor's preset
+//! ([`CalibrationOrigin::FolderName`]). Opening one ([`Dataset::open`]) parses the lists, checks
+//! which listed images exist, associates colour to depth by timestamp and validates the
+//! calibration; it decodes nothing. Frames are decoded one at a time with
 //! [`Dataset::load_frame`], or ahead of the pipeline on another thread by a [`DatasetReader`],
 //! which implements the core's [`ferroslam_core::frame::FrameSource`] port.
 //!
@@ -32,6 +35,7 @@ mod reader;
 pub mod registration;
 #[cfg(test)]
 mod tests;
+pub mod undistort;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -40,9 +44,10 @@ use ferroslam_core::config::{Config, Profile, Tunables};
 
 pub use crate::frame::OwnedFrame;
 use crate::frame::halve_frame;
-pub use calibration::{Calibration, DepthCamera};
+pub use calibration::{Calibration, DepthCamera, Distortion};
 pub use error::DatasetError;
 pub use reader::DatasetReader;
+use undistort::Undistorter;
 
 /// Ground-truth poses are the trajectory module's type (re-exported for convenience).
 pub use crate::trajectory::StampedPose;
@@ -52,7 +57,8 @@ use lists::ListEntry;
 /// Where the camera calibration comes from.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub enum CalibrationSource {
-    /// `calibration.toml` in the dataset folder.
+    /// `calibration.toml` in the dataset folder; when it has none, the TUM preset its name
+    /// implies ([`Calibration::preset_for_folder`]: `rgbd_dataset_freiburg1_xyz` is `tum1`).
     #[default]
     File,
     /// A named preset: `tum1`, `tum2` or `tum3` (see [`Calibration::preset`]).
@@ -162,6 +168,9 @@ pub struct Dataset {
     calibration: Calibration,
     profile: Profile,
     depth_level: u8,
+    calibration_origin: CalibrationOrigin,
+    /// The sensor's lens distortion removed from every frame; `None` for a pinhole sensor.
+    undistorter: Option<Undistorter>,
 }
 
 impl Dataset {
@@ -174,11 +183,7 @@ impl Dataset {
     /// [`DatasetError::ProfileSize`] when the calibrated size cannot be halved as the profile asks,
     /// and [`DatasetError::EmptyDataset`] when no frame is left.
     pub fn open(dir: &Path, opts: &DatasetOptions) -> Result<Self, DatasetError> {
-        let sensor = match &opts.calibration {
-            CalibrationSource::File => Calibration::load(dir.join("calibration.toml"))?,
-            CalibrationSource::Preset(name) => Calibration::preset(name)?,
-            CalibrationSource::Path(path) => Calibration::load(path)?,
-        };
+        let (sensor, calibration_origin) = open_calibration(dir, &opts.calibration)?;
         let levels = opts.profile.downsample_levels;
         let divisor = 1u32.checked_shl(u32::from(levels)).unwrap_or(0);
         if divisor == 0 || sensor.width % divisor != 0 || sensor.height % divisor != 0 {
@@ -225,8 +230,11 @@ impl Dataset {
             );
             return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
         }
-        // The frames `load_frame` gives are registered, so their calibration has no depth camera.
-        let calibration = Calibration { depth: None, ..sensor.downsampled(levels) };
+        // The frames `load_frame` gives are registered and undistorted, so their calibration has
+        // no depth camera and no distortion.
+        let calibration =
+            Calibration { depth: None, distortion: Distortion::NONE, ..sensor.downsampled(levels) };
+        let undistorter = Undistorter::new(&sensor);
         let profile = opts.profile;
         let depth_level = opts.depth_level.unwrap_or(profile.depth_level);
         Ok(Self {
@@ -238,7 +246,14 @@ impl Dataset {
             calibration,
             profile,
             depth_level,
+            calibration_origin,
+            undistorter,
         })
+    }
+
+    /// Where the calibration came from.
+    pub fn calibration_origin(&self) -> &CalibrationOrigin {
+        &self.calibration_origin
     }
 
     /// The dataset folder.
@@ -274,7 +289,7 @@ impl Dataset {
     }
 
     /// The calibration at the processing profile's resolution (what the core must use; its
-    /// `depth` is `None`, as the frames are registered).
+    /// `depth` is `None` and its distortion none, as the frames are registered and undistorted).
     pub fn calibration(&self) -> &Calibration {
         &self.calibration
     }
@@ -303,7 +318,9 @@ impl Dataset {
 
     /// Decodes frame `index`: colour to 8-bit gray, depth as raw 16-bit, both checked against the
     /// calibrated size; registers the depth to the colour camera when the calibration has a
-    /// depth camera ([`registration::register_depth`]); then halves both
+    /// depth camera ([`registration::register_depth`]); removes the lens distortion when it has
+    /// one (see [`undistort`]: from the gray image, and from the depth unless it was registered
+    /// here, which already gives it in the undistorted geometry); then halves both
     /// `profile.downsample_levels` times by the core's 2x2 downsamplers, and the depth
     /// `depth_level` more times ([`OwnedFrame::coarsen_depth`]).
     ///
@@ -317,8 +334,14 @@ impl Dataset {
             .get(index)
             .ok_or(DatasetError::FrameIndex { index, len: self.frames.len() })?;
         let size = (self.sensor.width, self.sensor.height);
-        let gray = decode::decode_gray(&frame.rgb_path, size)?;
+        let mut gray = decode::decode_gray(&frame.rgb_path, size)?;
         let mut depth = decode::decode_depth(&frame.depth_path, size)?;
+        if let Some(u) = &self.undistorter {
+            gray = u.gray(&gray);
+            if self.sensor.depth.is_none() {
+                depth = u.depth(&depth);
+            }
+        }
         if let Some(camera) = &self.sensor.depth {
             depth = registration::register_depth(&depth, &self.sensor, camera);
         }
@@ -347,6 +370,60 @@ impl Dataset {
     pub fn into_reader(self, read_ahead: usize) -> DatasetReader {
         DatasetReader::new(self, read_ahead)
     }
+}
+
+/// Where a dataset's calibration came from; `Display` says it in words.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CalibrationOrigin {
+    /// A calibration file (the folder's `calibration.toml` or another).
+    File(PathBuf),
+    /// A preset the caller named.
+    Preset(String),
+    /// The TUM preset the folder's name implies, the folder having no `calibration.toml`.
+    FolderName(&'static str),
+}
+
+impl fmt::Display for CalibrationOrigin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::File(path) => write!(f, "{}", path.display()),
+            Self::Preset(name) => write!(f, "preset {name}"),
+            Self::FolderName(name) => {
+                write!(
+                    f,
+                    "preset {name} (the folder has no calibration.toml; its name says {name})"
+                )
+            }
+        }
+    }
+}
+
+/// The sensor's calibration from `source`, and where it came from. A folder without
+/// `calibration.toml` whose name names a TUM sensor gets that sensor's preset; otherwise the
+/// missing file is an error that says how to give a calibration.
+fn open_calibration(
+    dir: &Path,
+    source: &CalibrationSource,
+) -> Result<(Calibration, CalibrationOrigin), DatasetError> {
+    Ok(match source {
+        CalibrationSource::File => {
+            let path = dir.join("calibration.toml");
+            // A folder that is not there is an I/O error of the file read first, as before.
+            if dir.is_dir() && !path.exists() {
+                let Some(name) = Calibration::preset_for_folder(dir) else {
+                    return Err(DatasetError::NoCalibration { dir: dir.to_owned() });
+                };
+                return Ok((Calibration::preset(name)?, CalibrationOrigin::FolderName(name)));
+            }
+            (Calibration::load(&path)?, CalibrationOrigin::File(path))
+        }
+        CalibrationSource::Preset(name) => {
+            (Calibration::preset(name)?, CalibrationOrigin::Preset(name.clone()))
+        }
+        CalibrationSource::Path(path) => {
+            (Calibration::load(path)?, CalibrationOrigin::File(path.clone()))
+        }
+    })
 }
 
 /// Reads `groundtruth.txt` if it exists, with the trajectory module's TUM reader.

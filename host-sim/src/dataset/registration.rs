@@ -83,6 +83,7 @@ mod tests {
             height: h,
             depth_scale: 1000.0,
             depth: None,
+            distortion: crate::dataset::Distortion::NONE,
         }
     }
 

@@ -250,3 +250,53 @@ fn errors_and_readers_cross_threads() {
     send::<DatasetReader>();
     send_sync::<Dataset>();
 }
+
+#[test]
+fn a_distortion_is_removed_from_gray_and_sensor_registered_depth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    tum_like(dir, 3);
+    let pinhole = Dataset::open(dir, &opts(VGA)).unwrap();
+    write(
+        dir,
+        "calibration.toml",
+        "fx = 10.0\nfy = 11.0\ncx = 3.5\ncy = 2.5\nwidth = 8\nheight = 6\ndepth_scale = 5000.0\n\
+         k1 = 0.3\np2 = 0.01\n",
+    );
+    let ds = Dataset::open(dir, &opts(VGA)).unwrap();
+    let sensor = *ds.sensor_calibration();
+    assert_eq!(sensor.distortion, Distortion { k1: 0.3, p2: 0.01, ..Distortion::NONE });
+    // The core gets a pinhole camera with the same intrinsics.
+    assert_eq!(ds.calibration(), pinhole.calibration());
+    let raw = pinhole.load_frame(0).unwrap();
+    let undistorter = Undistorter::new(&sensor).unwrap();
+    let frame = ds.load_frame(0).unwrap();
+    assert_eq!(frame.gray, undistorter.gray(&raw.gray));
+    assert_eq!(frame.depth, undistorter.depth(&raw.depth));
+    assert_ne!(frame.gray, raw.gray);
+}
+
+#[test]
+fn a_folder_without_calibration_takes_the_tum_preset_its_name_gives() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("rgbd_dataset_freiburg3_tiny");
+    tum_like(&dir, 3);
+    fs::remove_file(dir.join("calibration.toml")).unwrap();
+    // The preset's size (640 x 480) is not the images' (8 x 6): opening works, decoding says so.
+    let ds = Dataset::open(&dir, &opts(VGA)).unwrap();
+    assert_eq!(*ds.sensor_calibration(), Calibration::preset("tum3").unwrap());
+    assert_eq!(*ds.calibration_origin(), CalibrationOrigin::FolderName("tum3"));
+    assert!(ds.calibration_origin().to_string().starts_with("preset tum3 (the folder has no"));
+    assert!(matches!(ds.load_frame(0), Err(DatasetError::ImageSize { .. })));
+    let plain = tmp.path().join("recording");
+    tum_like(&plain, 3);
+    fs::remove_file(plain.join("calibration.toml")).unwrap();
+    let err = Dataset::open(&plain, &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::NoCalibration { .. }), "{err}");
+    assert!(err.to_string().contains("--preset tum1|tum2|tum3"), "{err}");
+    assert_eq!(Calibration::preset_for_folder(Path::new("a/freiburg1_freiburg2")), None);
+    assert_eq!(
+        Calibration::preset_for_folder(Path::new("rgbd_dataset_Freiburg2_xyz")),
+        Some("tum2")
+    );
+}
