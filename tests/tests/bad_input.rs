@@ -157,13 +157,21 @@ fn path_str(dir: &Path, name: &str) -> String {
 
 #[test]
 fn missing_lists_and_calibration_name_the_path() {
-    for name in ["rgb.txt", "depth.txt", "calibration.toml"] {
+    for name in ["rgb.txt", "depth.txt"] {
         let tmp = fixture(2);
         fs::remove_file(tmp.path().join(name)).unwrap();
         let err = open_err(tmp.path(), &vga());
         assert!(matches!(err, DatasetError::Io { ref path, .. } if path.ends_with(name)), "{err}");
         assert_mentions(&err, &[&path_str(tmp.path(), name), "cannot read"]);
     }
+    // A folder without calibration.toml (and no TUM sensor in its name): the error names the
+    // folder and says how to give a calibration.
+    let tmp = fixture(2);
+    fs::remove_file(tmp.path().join("calibration.toml")).unwrap();
+    let err = open_err(tmp.path(), &vga());
+    assert!(matches!(err, DatasetError::NoCalibration { .. }), "{err}");
+    let folder = tmp.path().display().to_string();
+    assert_mentions(&err, &[&folder, "no calibration.toml", "--calibration", "--preset"]);
     let err = open_err(Path::new("/nonexistent/ferroslam/dataset"), &vga());
     assert_mentions(&err, &["/nonexistent/ferroslam/dataset/calibration.toml"]);
 }
