@@ -102,7 +102,8 @@ pub struct FrontendParams {
     /// Seed of the pose estimator's random sampling (RANSAC). Default `0x5EED_F00D`.
     pub rng_seed: u64,
     /// Map reuse: at each keyframe, look for the map's untracked landmarks among its features
-    /// (see `frontend_reuse.rs`). Default `false` (see there for why).
+    /// (see `frontend_reuse.rs`). Default `false`: measured, it makes SLAM worse on 7-Scenes and
+    /// on the demo (`frontend_reuse.rs` has the figures).
     pub map_reuse: bool,
 }
 
