@@ -149,14 +149,12 @@ impl Calibration {
     /// `freiburg2`, `freiburg3` occurs in the folder's last name.
     pub fn preset_for_folder(dir: &Path) -> Option<&'static str> {
         let name = dir.file_name()?.to_str()?.to_ascii_lowercase();
-        let found: Vec<&'static str> =
-            [("freiburg1", "tum1"), ("freiburg2", "tum2"), ("freiburg3", "tum3")]
-                .into_iter()
-                .filter(|(sensor, _)| name.contains(sensor))
-                .map(|(_, preset)| preset)
-                .collect();
-        match found.as_slice() {
-            [one] => Some(one),
+        let mut found = [("freiburg1", "tum1"), ("freiburg2", "tum2"), ("freiburg3", "tum3")]
+            .into_iter()
+            .filter(|(sensor, _)| name.contains(sensor))
+            .map(|(_, preset)| preset);
+        match (found.next(), found.next()) {
+            (Some(one), None) => Some(one),
             _ => None,
         }
     }

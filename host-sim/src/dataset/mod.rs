@@ -338,13 +338,14 @@ impl Dataset {
         let mut depth = decode::decode_depth(&frame.depth_path, size)?;
         if let Some(u) = &self.undistorter {
             gray = u.gray(&gray);
-            if self.sensor.depth.is_none() {
-                depth = u.depth(&depth);
-            }
         }
-        if let Some(camera) = &self.sensor.depth {
-            depth = registration::register_depth(&depth, &self.sensor, camera);
-        }
+        // Registered here, the depth comes out in the pinhole geometry; registered by the sensor,
+        // it shares the raw colour image's lens.
+        depth = match (&self.sensor.depth, &self.undistorter) {
+            (Some(camera), _) => registration::register_depth(&depth, &self.sensor, camera),
+            (None, Some(u)) => u.depth(&depth),
+            (None, None) => depth,
+        };
         let full = OwnedFrame {
             timestamp_s: frame.rgb_timestamp_s,
             width: size.0 as usize,
