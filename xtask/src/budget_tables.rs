@@ -3,6 +3,7 @@
 //! `structures` (the core's `size_of` table), `binaries` (ELF sections, flash, static RAM,
 //! stack), `cost` (instructions per frame by stage) and `vga`.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -10,6 +11,7 @@ use anyhow::Result;
 
 use crate::budget_doc::{replace_region, write_measured};
 use crate::budgets::{Check, Measurements, VGA_DOES_NOT_RUN, show};
+use crate::cost::{FrameCost, FrameWork};
 use crate::stats::{Stats, millions, thousands};
 
 /// The back end's bar per step (issue 4, host x86_64 instructions), for comparison only.
@@ -25,7 +27,7 @@ pub fn render(doc: &str, m: &Measurements, checks: &[Check]) -> Result<String> {
     let doc = replace_region(&doc, "ram", &ram_table(m, checks))?;
     let doc = replace_region(&doc, "structures", &structures_table(m))?;
     let doc = replace_region(&doc, "binaries", &binaries_table(m))?;
-    let doc = replace_region(&doc, "cost", &cost_table(m))?;
+    let doc = replace_region(&doc, "cost", &cost_table(m, checks))?;
     replace_region(&doc, "vga", &vga_table(m))
 }
 
@@ -170,7 +172,7 @@ fn binaries_table(m: &Measurements) -> String {
     s
 }
 
-fn cost_table(m: &Measurements) -> String {
+fn cost_table(m: &Measurements, checks: &[Check]) -> String {
     let mut s = wrap(&format!(
         "Over {} frames of {} ({} keyframes), instructions per frame (SysTick ticks x 40, so \
          exact to 40 instructions):",
@@ -222,7 +224,51 @@ fn cost_table(m: &Measurements) -> String {
         millions(o.median),
         millions(o.max)
     )));
+    let bar =
+        checks.iter().find(|c| c.budget.key == "qvga.insn_per_frame_max").map(|c| c.budget.bar);
+    if let Some(kinds) = kinds_table(m, bar) {
+        s.push('\n');
+        s.push_str(&kinds);
+    }
     s
+}
+
+/// The pipeline's cost by kind of frame (what the front end ran on it), with how many frames of
+/// each kind are over `bar` (the max's); `None` when the run does not say what ran.
+fn kinds_table(m: &Measurements, bar: Option<u64>) -> Option<String> {
+    let mut kinds: BTreeMap<FrameWork, Vec<u64>> = BTreeMap::new();
+    for f in &m.run.frames {
+        kinds.entry(f.work?).or_default().push(f.pipeline());
+    }
+    let over = |v: &[u64]| {
+        bar.map_or_else(|| "-".into(), |b| v.iter().filter(|&&x| x > b).count().to_string())
+    };
+    let all: Vec<u64> = m.run.frames.iter().map(FrameCost::pipeline).collect();
+    let mut s = wrap(&format!(
+        "Pipeline by what the front end ran on the frame (the host replay's per-frame `work`, in \
+         `cost.json`; the firmware is bit-identical to it): {} of the {} frames are over the \
+         max's bar{}.",
+        over(&all),
+        all.len(),
+        bar.map_or_else(String::new, |b| format!(" of {}", millions(b)))
+    ));
+    s.push_str(
+        "\n| what the front end ran | frames | median | max | over the bar |\n\
+         | --- | ---: | ---: | ---: | ---: |\n",
+    );
+    for (work, v) in &kinds {
+        let st = Stats::of(v);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            work.describe(),
+            v.len(),
+            millions(st.median),
+            millions(st.max),
+            over(v)
+        );
+    }
+    Some(s)
 }
 
 fn vga_table(m: &Measurements) -> String {
@@ -264,5 +310,56 @@ mod tests {
         assert_eq!(wrap(""), "\n");
         let numbers = wrap(&format!("{} 30.89 M.", "x".repeat(96)));
         assert!(numbers.ends_with("\n30.89 M.\n"), "{numbers}");
+    }
+
+    #[test]
+    fn frames_are_grouped_by_what_ran_and_counted_over_the_bar() {
+        let work = |final_stages, detected| FrameWork {
+            final_stages,
+            guide_runs: final_stages - 1,
+            rotation_estimated: false,
+            detected,
+        };
+        let frame = |i, work, frontend| FrameCost {
+            frame_index: i,
+            keyframe: false,
+            work,
+            acquire: 0,
+            frontend,
+            backend_step: 1_000_000,
+            report: 0,
+        };
+        let mut m = Measurements {
+            run: crate::cost::FirmwareRun {
+                dataset: "data".into(),
+                elf: "fw.elf".into(),
+                elf_fnv1a64: String::new(),
+                status: ferroslam_core::wire::StatusMessage::default(),
+                frames: vec![
+                    frame(0, Some(work(2, true)), 16_000_000),
+                    frame(1, Some(work(1, false)), 5_000_000),
+                    frame(2, Some(work(2, true)), 13_000_000),
+                    frame(3, Some(work(1, false)), 4_000_000),
+                ],
+            },
+            cost_json: "cost.json".into(),
+            binaries: Vec::new(),
+            structures: Vec::new(),
+            figures: Vec::new(),
+        };
+        let table = kinds_table(&m, Some(15_000_000)).unwrap_or_default();
+        assert!(table.contains("1 of the 4 frames are over the max's bar of 15.00 M."), "{table}");
+        let rows: Vec<&str> =
+            table.lines().filter(|l| l.starts_with("| 1 ") || l.starts_with("| 2 ")).collect();
+        assert_eq!(
+            rows,
+            [
+                "| 1 final stage, 0 guide runs | 2 | 5.00 M | 6.00 M | 0 |",
+                "| 2 final stages, 1 guide run, detection (a keyframe) | 2 | 14.00 M | 17.00 M | 1 |",
+            ],
+            "{table}"
+        );
+        m.run.frames[3].work = None;
+        assert_eq!(kinds_table(&m, Some(15_000_000)), None);
     }
 }

@@ -10,7 +10,9 @@
 //! resolution of 40 instructions (a clock read costs a few of them, charged to its stage).
 //!
 //! The file also names the ELF it measured by an FNV-1a hash of its bytes, so that `budgets`
-//! refuses to pair it with another build.
+//! refuses to pair it with another build. Each frame may carry what the front end ran on it
+//! ([`FrameWork`], from the host replay of the same frames, which `firmware-replay` checks to be
+//! bit-identical), so that the costly frames can be told apart by kind.
 
 use std::collections::HashMap;
 use std::fs;
@@ -26,6 +28,36 @@ use crate::stats::Stats;
 /// The layout version of `cost.json` (2: front end and back-end step timed apart).
 pub const FORMAT: u64 = 2;
 
+/// What the front end ran on one frame (the core's `FrontendWork`, as the host replay's
+/// `report.json` gives it per frame): what a frame's cost is made of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub struct FrameWork {
+    /// Final stages run (the rerun of the winning one included).
+    pub final_stages: u8,
+    /// Guide runs.
+    pub guide_runs: u8,
+    /// Whether the rotation was estimated from the small images.
+    pub rotation_estimated: bool,
+    /// Whether features were detected (a keyframe made or attempted).
+    pub detected: bool,
+}
+
+impl FrameWork {
+    /// The kind of frame in words, e.g. `2 final stages, 1 guide run, detection`.
+    pub fn describe(&self) -> String {
+        let plural = |n: u8, one: &str| format!("{n} {one}{}", if n == 1 { "" } else { "s" });
+        let mut parts =
+            vec![plural(self.final_stages, "final stage"), plural(self.guide_runs, "guide run")];
+        if self.rotation_estimated {
+            parts.push("the small-image rotation".into());
+        }
+        if self.detected {
+            parts.push("detection (a keyframe)".into());
+        }
+        parts.join(", ")
+    }
+}
+
 /// Instructions of one frame, by stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FrameCost {
@@ -33,6 +65,8 @@ pub struct FrameCost {
     pub frame_index: u32,
     /// Whether the frame became a keyframe (detection and keyframe insertion run on it).
     pub keyframe: bool,
+    /// What the front end ran on the frame, when known (see [`FirmwareRun::attach_work`]).
+    pub work: Option<FrameWork>,
     /// Reading the frame and halving it to QVGA.
     pub acquire: u64,
     /// The front end.
@@ -136,6 +170,26 @@ impl FirmwareRun {
         Stats::of(&values)
     }
 
+    /// Gives each frame what the front end ran on it, `work[i]` to the `i`th frame: the host
+    /// replay's figures for the same frames (meaningful when the firmware's poses were
+    /// bit-identical to the host's).
+    ///
+    /// # Errors
+    /// `work` has another length than the frames.
+    pub fn attach_work(&mut self, work: &[FrameWork]) -> Result<()> {
+        if work.len() != self.frames.len() {
+            bail!(
+                "the host replay has {} frames, the firmware run {}",
+                work.len(),
+                self.frames.len()
+            );
+        }
+        for (f, w) in self.frames.iter_mut().zip(work) {
+            f.work = Some(*w);
+        }
+        Ok(())
+    }
+
     /// Keyframes among the frames.
     pub fn keyframe_count(&self) -> usize {
         self.frames.iter().filter(|f| f.keyframe).count()
@@ -151,6 +205,12 @@ impl FirmwareRun {
                 json!({
                     "frame_index": f.frame_index,
                     "keyframe": f.keyframe,
+                    "work": f.work.map(|w| json!({
+                        "final_stages": w.final_stages,
+                        "guide_runs": w.guide_runs,
+                        "rotation_estimated": w.rotation_estimated,
+                        "detected": w.detected,
+                    })),
                     "acquire_instructions": f.acquire,
                     "frontend_instructions": f.frontend,
                     "backend_step_instructions": f.backend_step,
@@ -233,6 +293,7 @@ impl FirmwareRun {
                 Ok(FrameCost {
                     frame_index: int32(f, "frame_index")?,
                     keyframe: f["keyframe"].as_bool().ok_or_else(|| anyhow!("no `keyframe`"))?,
+                    work: work_from_json(&f["work"])?,
                     acquire: int(f, "acquire_instructions")?,
                     frontend: int(f, "frontend_instructions")?,
                     backend_step: int(f, "backend_step_instructions")?,
@@ -250,6 +311,24 @@ impl FirmwareRun {
     }
 }
 
+/// A frame's `work` object (`null` or absent: not known).
+fn work_from_json(w: &Value) -> Result<Option<FrameWork>> {
+    if w.is_null() {
+        return Ok(None);
+    }
+    let count = |k: &str| -> Result<u8> {
+        let v = w[k].as_u64().ok_or_else(|| anyhow!("no integer `work.{k}`"))?;
+        Ok(u8::try_from(v)?)
+    };
+    let flag = |k: &str| w[k].as_bool().ok_or_else(|| anyhow!("no `work.{k}`"));
+    Ok(Some(FrameWork {
+        final_stages: count("final_stages")?,
+        guide_runs: count("guide_runs")?,
+        rotation_estimated: flag("rotation_estimated")?,
+        detected: flag("detected")?,
+    }))
+}
+
 /// One cost message as instructions, with its frame's keyframe flag.
 fn frame_cost(c: &CostMessage, keyframes: &HashMap<u32, bool>) -> Result<FrameCost> {
     let TickUnit::Instructions { per_tick } = c.unit else {
@@ -262,6 +341,7 @@ fn frame_cost(c: &CostMessage, keyframes: &HashMap<u32, bool>) -> Result<FrameCo
     Ok(FrameCost {
         frame_index: c.frame_index,
         keyframe,
+        work: None,
         acquire: u64::from(c.acquire_ticks) * k,
         frontend: u64::from(c.frontend_ticks) * k,
         backend_step: u64::from(c.backend_ticks) * k,
@@ -286,6 +366,7 @@ mod tests {
         let frame = |i: u32, keyframe, frontend| FrameCost {
             frame_index: i,
             keyframe,
+            work: None,
             acquire: 5_000_000,
             frontend,
             backend_step: 1_000 * u64::from(i),
@@ -322,6 +403,26 @@ mod tests {
         let mut old = doc;
         old["format"] = json!(1);
         assert!(FirmwareRun::from_json(&old).is_err());
+    }
+
+    #[test]
+    fn work_is_attached_and_round_trips() {
+        let mut r = run();
+        let w = |final_stages, detected| FrameWork {
+            final_stages,
+            guide_runs: final_stages - 1,
+            rotation_estimated: false,
+            detected,
+        };
+        assert!(r.attach_work(&[w(1, true)]).is_err());
+        r.attach_work(&[w(1, true), w(2, false), w(1, false)]).unwrap();
+        let doc = r.to_json(json!({}));
+        assert_eq!(doc["per_frame"][1]["work"]["final_stages"], 2);
+        assert_eq!(FirmwareRun::from_json(&doc).unwrap(), r);
+        assert_eq!(w(2, true).describe(), "2 final stages, 1 guide run, detection (a keyframe)");
+        let mut unknown = doc;
+        unknown["per_frame"][0]["work"] = Value::Null;
+        assert_eq!(FirmwareRun::from_json(&unknown).unwrap().frames[0].work, None);
     }
 
     #[test]

@@ -38,7 +38,7 @@ use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
 
-use crate::cost::FirmwareRun;
+use crate::cost::{FirmwareRun, FrameWork};
 use crate::firmware::{self, decode_defmt, elf_sections, flash_and_ram};
 use crate::stats::millions;
 
@@ -169,7 +169,17 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
-    let summary = write_cost_json(&out, &opts.dataset, &elf, &capture)?;
+    let work: Vec<FrameWork> = host
+        .per_frame
+        .iter()
+        .map(|f| FrameWork {
+            final_stages: f.final_stages,
+            guide_runs: f.guide_runs,
+            rotation_estimated: f.rotation_estimated,
+            detected: f.detected,
+        })
+        .collect();
+    let summary = write_cost_json(&out, &opts.dataset, &elf, &capture, &work)?;
 
     match first_difference(&fw_poses, &host) {
         None => {
@@ -306,9 +316,17 @@ fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &OdometryRun) -> Res
     Ok(())
 }
 
-/// Writes `cost.json` (see `cost.rs`) and returns a one-line summary of its figures.
-fn write_cost_json(out: &Path, dataset: &Path, elf: &Path, capture: &Capture) -> Result<String> {
-    let run = FirmwareRun::from_capture(capture, dataset, elf)?;
+/// Writes `cost.json` (see `cost.rs`), each frame with what the host's front end ran on it,
+/// and returns a one-line summary of its figures.
+fn write_cost_json(
+    out: &Path,
+    dataset: &Path,
+    elf: &Path,
+    capture: &Capture,
+    work: &[FrameWork],
+) -> Result<String> {
+    let mut run = FirmwareRun::from_capture(capture, dataset, elf)?;
+    run.attach_work(work)?;
     let sections = elf_sections(elf).unwrap_or_default();
     let (flash, ram) = flash_and_ram(&sections);
     let stack = run.status.stack_peak_bytes;
