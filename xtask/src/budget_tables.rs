@@ -8,10 +8,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Result;
+use ferroslam_core::tracking::FrontendWork;
 
 use crate::budget_doc::{replace_region, write_measured};
 use crate::budgets::{Check, Measurements, VGA_DOES_NOT_RUN, show};
-use crate::cost::{FrameCost, FrameWork};
+use crate::cost::{FrameCost, describe_work};
 use crate::stats::{Stats, millions, thousands};
 
 /// The back end's bar per step (issue 4, host x86_64 instructions), for comparison only.
@@ -236,7 +237,7 @@ fn cost_table(m: &Measurements, checks: &[Check]) -> String {
 /// The pipeline's cost by kind of frame (what the front end ran on it), with how many frames of
 /// each kind are over `bar` (the max's); `None` when the run does not say what ran.
 fn kinds_table(m: &Measurements, bar: Option<u64>) -> Option<String> {
-    let mut kinds: BTreeMap<FrameWork, Vec<u64>> = BTreeMap::new();
+    let mut kinds: BTreeMap<FrontendWork, Vec<u64>> = BTreeMap::new();
     for f in &m.run.frames {
         kinds.entry(f.work?).or_default().push(f.pipeline());
     }
@@ -261,7 +262,7 @@ fn kinds_table(m: &Measurements, bar: Option<u64>) -> Option<String> {
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} |",
-            work.describe(),
+            describe_work(work),
             v.len(),
             millions(st.median),
             millions(st.max),
@@ -314,7 +315,7 @@ mod tests {
 
     #[test]
     fn frames_are_grouped_by_what_ran_and_counted_over_the_bar() {
-        let work = |final_stages, detected| FrameWork {
+        let work = |final_stages, detected| FrontendWork {
             final_stages,
             guide_runs: final_stages - 1,
             rotation_estimated: false,

@@ -11,7 +11,7 @@
 //!
 //! The file also names the ELF it measured by an FNV-1a hash of its bytes, so that `budgets`
 //! refuses to pair it with another build. Each frame may carry what the front end ran on it
-//! ([`FrameWork`], from the host replay of the same frames, which `firmware-replay` checks to be
+//! (the core's `FrontendWork`, from the host replay of the same frames, which `firmware-replay` checks to be
 //! bit-identical), so that the costly frames can be told apart by kind.
 
 use std::collections::HashMap;
@@ -19,6 +19,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
+use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{CostMessage, Message, PoseFlags, StatusMessage, TickUnit};
 use ferroslam_sim::serial::Capture;
 use serde_json::{Value, json};
@@ -28,34 +29,19 @@ use crate::stats::Stats;
 /// The layout version of `cost.json` (2: front end and back-end step timed apart).
 pub const FORMAT: u64 = 2;
 
-/// What the front end ran on one frame (the core's `FrontendWork`, as the host replay's
-/// `report.json` gives it per frame): what a frame's cost is made of.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub struct FrameWork {
-    /// Final stages run (the rerun of the winning one included).
-    pub final_stages: u8,
-    /// Guide runs.
-    pub guide_runs: u8,
-    /// Whether the rotation was estimated from the small images.
-    pub rotation_estimated: bool,
-    /// Whether features were detected (a keyframe made or attempted).
-    pub detected: bool,
-}
-
-impl FrameWork {
-    /// The kind of frame in words, e.g. `2 final stages, 1 guide run, detection`.
-    pub fn describe(&self) -> String {
-        let plural = |n: u8, one: &str| format!("{n} {one}{}", if n == 1 { "" } else { "s" });
-        let mut parts =
-            vec![plural(self.final_stages, "final stage"), plural(self.guide_runs, "guide run")];
-        if self.rotation_estimated {
-            parts.push("the small-image rotation".into());
-        }
-        if self.detected {
-            parts.push("detection (a keyframe)".into());
-        }
-        parts.join(", ")
+/// The kind of frame `work` says, in words, e.g. `2 final stages, 1 guide run, detection (a
+/// keyframe)`.
+pub fn describe_work(work: &FrontendWork) -> String {
+    let plural = |n: u8, one: &str| format!("{n} {one}{}", if n == 1 { "" } else { "s" });
+    let mut parts =
+        vec![plural(work.final_stages, "final stage"), plural(work.guide_runs, "guide run")];
+    if work.rotation_estimated {
+        parts.push("the small-image rotation".into());
     }
+    if work.detected {
+        parts.push("detection (a keyframe)".into());
+    }
+    parts.join(", ")
 }
 
 /// Instructions of one frame, by stage.
@@ -66,7 +52,7 @@ pub struct FrameCost {
     /// Whether the frame became a keyframe (detection and keyframe insertion run on it).
     pub keyframe: bool,
     /// What the front end ran on the frame, when known (see [`FirmwareRun::attach_work`]).
-    pub work: Option<FrameWork>,
+    pub work: Option<FrontendWork>,
     /// Reading the frame and halving it to QVGA.
     pub acquire: u64,
     /// The front end.
@@ -176,7 +162,7 @@ impl FirmwareRun {
     ///
     /// # Errors
     /// `work` has another length than the frames.
-    pub fn attach_work(&mut self, work: &[FrameWork]) -> Result<()> {
+    pub fn attach_work(&mut self, work: &[FrontendWork]) -> Result<()> {
         if work.len() != self.frames.len() {
             bail!(
                 "the host replay has {} frames, the firmware run {}",
@@ -312,7 +298,7 @@ impl FirmwareRun {
 }
 
 /// A frame's `work` object (`null` or absent: not known).
-fn work_from_json(w: &Value) -> Result<Option<FrameWork>> {
+fn work_from_json(w: &Value) -> Result<Option<FrontendWork>> {
     if w.is_null() {
         return Ok(None);
     }
@@ -321,7 +307,7 @@ fn work_from_json(w: &Value) -> Result<Option<FrameWork>> {
         Ok(u8::try_from(v)?)
     };
     let flag = |k: &str| w[k].as_bool().ok_or_else(|| anyhow!("no `work.{k}`"));
-    Ok(Some(FrameWork {
+    Ok(Some(FrontendWork {
         final_stages: count("final_stages")?,
         guide_runs: count("guide_runs")?,
         rotation_estimated: flag("rotation_estimated")?,
@@ -408,7 +394,7 @@ mod tests {
     #[test]
     fn work_is_attached_and_round_trips() {
         let mut r = run();
-        let w = |final_stages, detected| FrameWork {
+        let w = |final_stages, detected| FrontendWork {
             final_stages,
             guide_runs: final_stages - 1,
             rotation_estimated: false,
@@ -419,7 +405,10 @@ mod tests {
         let doc = r.to_json(json!({}));
         assert_eq!(doc["per_frame"][1]["work"]["final_stages"], 2);
         assert_eq!(FirmwareRun::from_json(&doc).unwrap(), r);
-        assert_eq!(w(2, true).describe(), "2 final stages, 1 guide run, detection (a keyframe)");
+        assert_eq!(
+            describe_work(&w(2, true)),
+            "2 final stages, 1 guide run, detection (a keyframe)"
+        );
         let mut unknown = doc;
         unknown["per_frame"][0]["work"] = Value::Null;
         assert_eq!(FirmwareRun::from_json(&unknown).unwrap().frames[0].work, None);

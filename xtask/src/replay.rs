@@ -30,6 +30,7 @@ use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
+use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::commands::datapath::{MapScale, OdometryRun, Schedule, TrackMode, run_odometry};
@@ -38,7 +39,7 @@ use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
 
-use crate::cost::{FirmwareRun, FrameWork};
+use crate::cost::FirmwareRun;
 use crate::firmware::{self, decode_defmt, elf_sections, flash_and_ram};
 use crate::stats::millions;
 
@@ -169,10 +170,10 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
-    let work: Vec<FrameWork> = host
+    let work: Vec<FrontendWork> = host
         .per_frame
         .iter()
-        .map(|f| FrameWork {
+        .map(|f| FrontendWork {
             final_stages: f.final_stages,
             guide_runs: f.guide_runs,
             rotation_estimated: f.rotation_estimated,
@@ -323,7 +324,7 @@ fn write_cost_json(
     dataset: &Path,
     elf: &Path,
     capture: &Capture,
-    work: &[FrameWork],
+    work: &[FrontendWork],
 ) -> Result<String> {
     let mut run = FirmwareRun::from_capture(capture, dataset, elf)?;
     run.attach_work(work)?;

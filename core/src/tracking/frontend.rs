@@ -134,8 +134,9 @@ pub struct FrameResult {
 }
 
 /// The costly steps the front end ran on one frame: a frame's instructions are mostly these
-/// (`memory-budget.md` gives each one's cost on the Cortex-M4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// (`memory-budget.md` gives each one's cost on the Cortex-M4). Ordered field by field, so that
+/// `cargo xtask budgets` can sort frames by kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrontendWork {
     /// Final stages run (up to `max_tracked` landmarks matched and a pose estimated), the rerun
