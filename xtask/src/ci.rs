@@ -70,6 +70,8 @@ pub fn run_all() -> Result<()> {
         cargo(&[
             "clippy",
             "-p",
+            "ferroslam-fpu",
+            "-p",
             "ferroslam-core",
             "-p",
             "ferroslam-firmware",
@@ -86,6 +88,8 @@ pub fn run_all() -> Result<()> {
             &[
                 "doc",
                 "--no-deps",
+                "-p",
+                "ferroslam-fpu",
                 "-p",
                 "ferroslam-core",
                 "-p",

@@ -79,7 +79,7 @@ impl Template {
         let sum: f32 = grid(half).map(|u| t.at(u)).sum();
         t.mean = sum / n;
         let ss: f32 = grid(half).map(|u| t.at(u) - t.mean).map(|d| d * d).sum();
-        t.norm = libm::sqrtf(ss);
+        t.norm = ferroslam_fpu::sqrtf(ss);
         Some(t)
     }
 
@@ -130,7 +130,7 @@ impl Template {
             return None;
         }
         // Rounding can push a perfect match a few ulps past 1.
-        Some((st / (libm::sqrtf(var) * self.norm)).clamp(-1.0, 1.0))
+        Some((st / (ferroslam_fpu::sqrtf(var) * self.norm)).clamp(-1.0, 1.0))
     }
 }
 

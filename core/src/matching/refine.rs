@@ -70,7 +70,7 @@ fn warp_patch(
     }
     let mean = sum / n as f32;
     let ss: f32 = buf.iter().take(n).map(|v| (v - mean) * (v - mean)).sum();
-    Some((mean, libm::sqrtf(ss)))
+    Some((mean, ferroslam_fpu::sqrtf(ss)))
 }
 
 /// Refines the warp `(centre, m)` of template `t` into `target`. Returns the refined

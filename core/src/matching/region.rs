@@ -74,7 +74,7 @@ fn match_one_way(
 ) -> Result<RegionMatch, MatchError> {
     let t = Template::extract(template_img, centre, p.half_size)
         .ok_or(MatchError::TemplateOutOfImage)?;
-    let std_dev = t.norm / libm::sqrtf(t.len() as f32);
+    let std_dev = t.norm / ferroslam_fpu::sqrtf(t.len() as f32);
     if std_dev.is_nan() || std_dev < p.min_template_std {
         return Err(MatchError::FlatTemplate { std_dev });
     }
@@ -153,7 +153,7 @@ pub fn match_region(
     )
     .map_err(|_| MatchError::ForwardBackward { error_px: f32::INFINITY })?;
     let (ex, ey) = (back.centre_in_target.0 - centre.0, back.centre_in_target.1 - centre.1);
-    let error_px = libm::sqrtf(ex * ex + ey * ey);
+    let error_px = ferroslam_fpu::sqrtf(ex * ex + ey * ey);
     if error_px.is_nan() || error_px > max_fb {
         return Err(MatchError::ForwardBackward { error_px });
     }

@@ -60,7 +60,7 @@
 //!
 //! # Determinism
 //!
-//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), square roots through `libm`;
+//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), correctly rounded square roots (`ferroslam_fpu::sqrtf`: the FPU on the board, libm on the host);
 //! ties go to the first candidate in scan order (rows top to bottom, each left to right).
 
 mod integer_search;
@@ -238,7 +238,7 @@ impl<const N: usize, const S: usize> Template<N, S> {
             *z -= mean;
             ss += *z * *z;
         }
-        self.norm = libm::sqrtf(ss);
+        self.norm = ferroslam_fpu::sqrtf(ss);
         true
     }
 }
@@ -398,7 +398,7 @@ fn refine<const N: usize, const S: usize>(
     for _ in 0..params.max_iterations {
         let m = Moments::at::<N, true, false>(target, origin(c), sd, &t.zero_mean)
             .ok_or(MatchError::RefinementFailed)?;
-        let norm_i = libm::sqrtf(m.variance(len));
+        let norm_i = ferroslam_fpu::sqrtf(m.variance(len));
         if norm_i.is_nan() || norm_i <= 0.0 {
             return Err(MatchError::RefinementFailed);
         }
@@ -427,7 +427,7 @@ fn refine<const N: usize, const S: usize>(
     }
     // `sum z (v - mean) = sum z v` as `z` has zero mean. Rounding can push a perfect match a few
     // ulps past 1.
-    let score = (m.z_v / (libm::sqrtf(var) * t.norm)).clamp(-1.0, 1.0);
+    let score = (m.z_v / (ferroslam_fpu::sqrtf(var) * t.norm)).clamp(-1.0, 1.0);
     Ok((c, score))
 }
 
@@ -522,7 +522,7 @@ fn track_fixed<const N: usize, const S: usize>(
         return Err(MatchError::LowCorrelation { zncc });
     }
     let (dx, dy) = (uv.0 - predicted.0, uv.1 - predicted.1);
-    Ok(PatchTrack { uv, zncc, offset_px: libm::sqrtf(dx * dx + dy * dy) })
+    Ok(PatchTrack { uv, zncc, offset_px: ferroslam_fpu::sqrtf(dx * dx + dy * dy) })
 }
 
 /// Tracks the patch of `template_img` centred at `centre` into `target`, where it is predicted at

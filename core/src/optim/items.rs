@@ -240,7 +240,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         };
         let trial = if active { compose_left(&x, &t) } else { t };
         if active {
-            let norm3 = |a: f32, b: f32, c: f32| libm::sqrtf(a * a + b * b + c * c);
+            let norm3 = |a: f32, b: f32, c: f32| ferroslam_fpu::sqrtf(a * a + b * b + c * c);
             let m = &mut self.state.step_max;
             m[0] = m[0].max(norm3(x[0], x[1], x[2]));
             m[1] = m[1].max(norm3(x[3], x[4], x[5]));

@@ -4,7 +4,7 @@
 //!
 //! Plain `[f32; N]` arrays keep the solver's storage `const`-constructible and its arithmetic
 //! explicit: every sum below runs in a fixed order with `+ - * /` only (no `mul_add`), square roots
-//! through `libm`, so the same inputs give the same bits on every target.
+//! through `libm` (square roots through `ferroslam_fpu::sqrtf`, correctly rounded like libm's), so the same inputs give the same bits on every target.
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 
@@ -139,7 +139,7 @@ pub(super) fn sym6_cholesky(h: &mut Sym6, min_pivot_ratio: f32) -> bool {
         if !pivot_ok {
             return false;
         }
-        let l_jj = libm::sqrtf(d);
+        let l_jj = ferroslam_fpu::sqrtf(d);
         h[jj] = l_jj;
         let inv = 1.0 / l_jj;
         for i in j + 1..6 {

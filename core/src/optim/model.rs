@@ -86,7 +86,7 @@ pub(super) fn huber(s2: f32, delta: f32) -> (f32, f32) {
     if s2 <= delta * delta {
         (1.0, s2)
     } else {
-        let s = libm::sqrtf(s2);
+        let s = ferroslam_fpu::sqrtf(s2);
         (delta / s, 2.0 * delta * s - delta * delta)
     }
 }

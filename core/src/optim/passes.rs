@@ -168,7 +168,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                     acc.u = sym3_mul(&hi, &rhs).map(|x| -x);
                     acc.active = true;
                 }
-                let len = libm::sqrtf(dot3(&acc.u, &acc.u));
+                let len = ferroslam_fpu::sqrtf(dot3(&acc.u, &acc.u));
                 let max = &mut self.state.step_max[2];
                 *max = max.max(len);
             }

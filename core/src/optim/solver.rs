@@ -392,7 +392,7 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         pcg.iteration += 1;
         self.state.pcg_iterations += 1;
         let converged = pcg.rz_new <= tol * tol * pcg.rz0;
-        self.state.pcg_last_ratio = libm::sqrtf(pcg.rz_new / pcg.rz0);
+        self.state.pcg_last_ratio = ferroslam_fpu::sqrtf(pcg.rz_new / pcg.rz0);
         let usable = pcg.rz_new.is_finite() && pcg.rz > 0.0;
         if converged || pcg.iteration >= max || !usable {
             return Phase::TrialRigs(0);

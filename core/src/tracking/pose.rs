@@ -57,7 +57,7 @@ fn huber(s2: f32, delta: f32) -> (f32, f32) {
     if s2 <= delta * delta {
         (1.0, s2)
     } else {
-        let s = libm::sqrtf(s2);
+        let s = ferroslam_fpu::sqrtf(s2);
         (delta / s, 2.0 * delta * s - delta * delta)
     }
 }
@@ -240,7 +240,7 @@ impl Problem<'_> {
         let var_t = max3(d.x, d.y, d.z);
         let var_r = max3(d.w, d.a, d.b);
         let ok = var_t.is_finite() && var_r.is_finite() && var_t >= 0.0 && var_r >= 0.0;
-        ok.then(|| (libm::sqrtf(var_t), libm::sqrtf(var_r)))
+        ok.then(|| (ferroslam_fpu::sqrtf(var_t), ferroslam_fpu::sqrtf(var_r)))
     }
 }
 
@@ -326,7 +326,7 @@ pub fn refine_pose(
         inliers,
         num_inliers,
         // num_inliers >= 3 and far below 2^24: the conversion is exact.
-        rms_reprojection_px: libm::sqrtf(sum_sq_px / num_inliers as f32),
+        rms_reprojection_px: ferroslam_fpu::sqrtf(sum_sq_px / num_inliers as f32),
         iterations,
         converged,
         sigma_translation_m: sigma_t,

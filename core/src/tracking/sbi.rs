@@ -316,7 +316,7 @@ pub fn estimate_rotation_with(
             if (n as f32) < min_n {
                 return None;
             }
-            rms = libm::sqrtf(sq / n as f32);
+            rms = ferroslam_fpu::sqrtf(sq / n as f32);
             let delta = h.cholesky()?.solve(&(-g));
             let w = Vector3::new(delta[0], delta[1], delta[2]);
             if !w.iter().all(|v| v.is_finite()) {

@@ -44,7 +44,7 @@ impl<const N: usize> Quantized<N> {
         // At most 169 * 169 * 128^2: far inside i64.
         let var_n2 = (N * N) as i64 * qss - qs * qs;
         (self.sum, self.var_n2) = (qs, var_n2);
-        self.root_var_n2 = libm::sqrtf(exact_f32(var_n2));
+        self.root_var_n2 = ferroslam_fpu::sqrtf(exact_f32(var_n2));
     }
 
     /// `sum s q` over the `N x N` block of target pixels `s` whose top-left pixel is `(x0, y0)`
@@ -112,7 +112,7 @@ impl<const N: usize> Quantized<N> {
         }
         // Both factors are below 1.87e9 (see `exact_f32`): their f32 roots lose nothing that
         // matters at ZNCC scale.
-        let denom = libm::sqrtf(exact_f32(var_s)) * self.root_var_n2;
+        let denom = ferroslam_fpu::sqrtf(exact_f32(var_s)) * self.root_var_n2;
         Some((exact_f32(cov) / denom).clamp(-1.0, 1.0))
     }
 }
