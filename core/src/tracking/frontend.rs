@@ -34,9 +34,13 @@
 //!    inliers fall below `keyframe_inlier_ratio` of those of the frame after the last keyframe or
 //!    below `keyframe_min_inliers`, or when the camera moved more than
 //!    `keyframe_max_translation_m` or turned more than `keyframe_max_rotation_rad` from the last
-//!    keyframe. A keyframe records its inliers as observations, re-anchors the landmarks whose
-//!    templates are too warped, and turns the detected Hessian features with valid depth that are
-//!    not near an inlier into new landmarks (see `frontend_keyframe.rs`).
+//!    keyframe. On a costly frame ([`FrontendWork::is_costly`]) a due keyframe is put off to the
+//!    next tracked frame, at most `keyframe_max_put_off` frames in a row, and then made with
+//!    `costly_keyframe_octaves` pyramid octaves (`decide_keyframe`; the costliest frames on the
+//!    board were costly frames that also made a keyframe). A keyframe records its inliers as
+//!    observations, re-anchors the landmarks whose templates are too warped, and turns the
+//!    detected Hessian features with valid depth that are not near an inlier into new landmarks
+//!    (see `frontend_keyframe.rs`).
 //! 7. Loss: when tracking fails (too few matches or inliers, no pose), the frame is
 //!    [`FrontendState::Lost`] and its output is the prediction with `tracked == false`: the
 //!    trajectory never jumps. The next frame is tried against the local map first; if that fails
@@ -150,6 +154,45 @@ pub struct FrontendWork {
     pub detected: bool,
 }
 
+impl FrontendWork {
+    /// Whether the frame's tracking was costly: it ran a second final stage or estimated the
+    /// rotation from the small images. A keyframe due on such a frame is put off (see
+    /// [`FrontendParams::keyframe_max_put_off`]).
+    pub fn is_costly(&self) -> bool {
+        self.final_stages >= 2 || self.rotation_estimated
+    }
+}
+
+/// What the keyframe rule does on a tracked frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum KeyframeDecision {
+    /// No keyframe is due.
+    None,
+    /// A keyframe is due and put off to the next tracked frame.
+    PutOff,
+    /// A keyframe is made, with this many pyramid octaves of feature detection.
+    Make {
+        /// [`HessianParams::octaves`](crate::features::HessianParams::octaves) to detect with.
+        octaves: u8,
+    },
+}
+
+/// The keyframe decision of a tracked frame: `due` is the keyframe rule's verdict, `costly` is
+/// [`FrontendWork::is_costly`], `put_off` the keyframes put off in a row before this frame.
+pub(super) fn decide_keyframe(
+    due: bool,
+    costly: bool,
+    put_off: u8,
+    params: &FrontendParams,
+) -> KeyframeDecision {
+    match (due, costly) {
+        (false, _) => KeyframeDecision::None,
+        (true, false) => KeyframeDecision::Make { octaves: params.hessian.octaves },
+        (true, true) if put_off < params.keyframe_max_put_off => KeyframeDecision::PutOff,
+        (true, true) => KeyframeDecision::Make { octaves: params.costly_keyframe_octaves },
+    }
+}
+
 /// The attempts of the guide stage, in the order they are tried (see the module documentation):
 /// which one gave the pose the final stage started from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -256,6 +299,9 @@ pub struct FrontendStats {
     pub reinitializations: u32,
     /// Keyframes made.
     pub keyframes: u32,
+    /// Frames on which a due keyframe was put off because the frame was costly (see
+    /// [`FrontendParams::keyframe_max_put_off`]).
+    pub keyframes_put_off: u32,
     /// Frames whose guide landmarks could not give a pose from the motion model, so the affine
     /// bank was searched.
     pub bank_recoveries: u32,
@@ -292,6 +338,8 @@ pub struct Frontend<const W: usize, const H: usize> {
     pub(super) previous_inliers: usize,
     /// The last keyframe's tracked and created landmarks.
     pub(super) last_keyframe_counts: (usize, usize, usize),
+    /// Due keyframes put off in a row (costly frames).
+    pub(super) keyframes_put_off: u8,
     /// The costly steps run on the frame being processed.
     pub(super) work: FrontendWork,
 }
@@ -328,6 +376,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 lost_frames: 0,
                 reinitializations: 0,
                 keyframes: 0,
+                keyframes_put_off: 0,
                 bank_recoveries: 0,
             },
             frame_index: 0,
@@ -338,6 +387,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             previous_t_cw: None,
             previous_inliers: 0,
             last_keyframe_counts: (0, 0, 0),
+            keyframes_put_off: 0,
             work: FrontendWork {
                 final_stages: 0,
                 guide_runs: 0,
@@ -464,7 +514,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.local.clear();
         self.correspondences.clear();
         self.sources.clear();
-        let made = self.make_keyframe(frame, cam, map, t_cw, None);
+        let made = self.make_keyframe(frame, cam, map, t_cw, None, self.params.hessian.octaves);
         let state = match (made, first) {
             (Some(_), _) => FrontendState::Tracking,
             (None, true) => FrontendState::Initializing,
@@ -540,10 +590,23 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let _ = self.motion.update(frame.timestamp_s, &est.t_cw);
         self.update_local_map(cam, map, &est);
         let base = *self.inliers_after_keyframe.get_or_insert(est.num_inliers);
-        let keyframe = if self.needs_keyframe(&est.t_cw, est.num_inliers, base) {
-            self.make_keyframe(frame, cam, map, &est.t_cw, Some(&est.inliers))
-        } else {
-            None
+        let due = self.needs_keyframe(&est.t_cw, est.num_inliers, base);
+        let decision =
+            decide_keyframe(due, self.work.is_costly(), self.keyframes_put_off, &self.params);
+        let keyframe = match decision {
+            KeyframeDecision::None => {
+                self.keyframes_put_off = 0;
+                None
+            }
+            KeyframeDecision::PutOff => {
+                self.keyframes_put_off = self.keyframes_put_off.saturating_add(1);
+                self.stats.keyframes_put_off = self.stats.keyframes_put_off.saturating_add(1);
+                None
+            }
+            KeyframeDecision::Make { octaves } => {
+                self.keyframes_put_off = 0;
+                self.make_keyframe(frame, cam, map, &est.t_cw, Some(&est.inliers), octaves)
+            }
         };
         self.cull_local_map();
         FrameResult {

@@ -9,7 +9,7 @@ use super::frontend::Frontend;
 use super::frontend_reuse::{FEATURE_WORDS, FeatureSet, contains};
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
 use crate::config::capacity;
-use crate::features::{Descriptor, Feature};
+use crate::features::{Descriptor, Feature, HessianParams};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation};
@@ -27,7 +27,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     /// Makes a keyframe of `frame` at `t_cw`: the inliers of the last pose (`inliers` over the
     /// current correspondences; `None` when starting tracking) become its observations, templates
     /// warped beyond `reanchor_max_warp` are re-taken from it, and features with valid depth that
-    /// are not near an inlier become new landmarks.
+    /// are not near an inlier become new landmarks. Features are detected over `octaves`
+    /// pyramid octaves (the parameters' own, or fewer on a costly frame).
     ///
     /// Returns the keyframe's id, or `None` when the map cannot take a keyframe, or when starting
     /// tracking and fewer than `min_keyframe_landmarks` landmarks result (the keyframe and its new
@@ -39,6 +40,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         map: &mut Map<K, L>,
         t_cw: &Pose,
         inliers: Option<&InlierMask>,
+        octaves: u8,
     ) -> Option<KeyFrameId> {
         let t_wc = t_cw.inverse();
         if map.keyframes_full() {
@@ -49,8 +51,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let tracked = inliers.map_or(0, |m| self.record_inliers(frame, cam, map, kf, t_cw, m));
         let mut used: FeatureSet = [0; FEATURE_WORDS];
         self.work.detected = true;
-        let detected =
-            self.detector.detect(&frame.gray, &self.params.hessian, &mut self.features).is_ok();
+        let hessian = HessianParams { octaves, ..self.params.hessian };
+        let detected = self.detector.detect(&frame.gray, &hessian, &mut self.features).is_ok();
         let reacquired = if detected && inliers.is_some() && self.params.map_reuse {
             self.reacquire(frame, cam, map, kf, t_cw, &mut used)
         } else {

@@ -286,3 +286,68 @@ fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
     // The local map dominates: 256 templates of 16 x 16 pixels with their anchors.
     assert!(qvga < 240_000, "{qvga}");
 }
+
+#[test]
+fn a_keyframe_due_on_a_costly_frame_is_put_off_a_bounded_number_of_times() {
+    let p = FrontendParams::DEFAULT;
+    let full = KeyframeDecision::Make { octaves: p.hessian.octaves };
+    let cheap = KeyframeDecision::Make { octaves: p.costly_keyframe_octaves };
+    assert_eq!(decide_keyframe(false, false, 0, &p), KeyframeDecision::None);
+    assert_eq!(decide_keyframe(false, true, 2, &p), KeyframeDecision::None);
+    assert_eq!(decide_keyframe(true, false, 0, &p), full);
+    // A cheap frame makes the keyframe at once, even after put-offs.
+    assert_eq!(decide_keyframe(true, false, p.keyframe_max_put_off, &p), full);
+    for put_off in 0..p.keyframe_max_put_off {
+        assert_eq!(decide_keyframe(true, true, put_off, &p), KeyframeDecision::PutOff);
+    }
+    // Put-offs used up: made on the costly frame, with fewer octaves.
+    assert_eq!(decide_keyframe(true, true, p.keyframe_max_put_off, &p), cheap);
+    assert!(p.costly_keyframe_octaves < p.hessian.octaves);
+    // 0 makes every keyframe when due.
+    let never = FrontendParams { keyframe_max_put_off: 0, ..p };
+    assert_eq!(decide_keyframe(true, true, 0, &never), cheap);
+    // What makes a frame costly.
+    let w = FrontendWork { final_stages: 1, guide_runs: 3, ..FrontendWork::default() };
+    assert!(!w.is_costly());
+    assert!(FrontendWork { final_stages: 2, ..w }.is_costly());
+    assert!(FrontendWork { rotation_estimated: true, ..w }.is_costly());
+}
+
+#[test]
+fn costly_keyframe_octaves_out_of_range_are_an_error() {
+    let cam = camera();
+    let (g, d) = render(&pose_at(0));
+    for octaves in [0, 9] {
+        let params = FrontendParams { costly_keyframe_octaves: octaves, ..FrontendParams::DEFAULT };
+        assert!(!params.is_valid());
+        let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+        let mut map = new_map();
+        let e = fe.process(&frame(0.0, &g, &d), &cam, &mut map).unwrap_err();
+        assert_eq!(e, FrontendError::InvalidParams);
+        assert_eq!(map.num_keyframes(), 0, "nothing changes on an error");
+    }
+}
+
+#[test]
+fn without_costly_frames_putting_off_changes_nothing() {
+    // The smooth scene never runs a second final stage nor the small-image rotation, so the
+    // put-off rule must leave every output bit as it is with the rule off.
+    let cam = camera();
+    let run = |params: FrontendParams| {
+        let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+        let mut map = new_map();
+        let mut out = Vec::new();
+        for k in 0..24 {
+            let (g, d) = render(&pose_at(k));
+            let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
+            assert!(!r.work.is_costly(), "frame {k}: {:?}", r.work);
+            out.push((r.t_wc.to_homogeneous(), r.keyframe, r.inliers));
+        }
+        (out, fe.stats())
+    };
+    let (with_rule, stats) = run(FrontendParams::DEFAULT);
+    let (without, _) = run(FrontendParams { keyframe_max_put_off: 0, ..FrontendParams::DEFAULT });
+    assert_eq!(stats.keyframes_put_off, 0);
+    assert!(stats.keyframes >= 2, "the motion makes keyframes ({})", stats.keyframes);
+    assert_eq!(with_rule, without);
+}
