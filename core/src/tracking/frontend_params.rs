@@ -54,7 +54,7 @@ pub struct FrontendParams {
     /// depth registered to colour, against 6.99 M at 200). It costs about 1 mm of 7-Scenes ATE
     /// (means over 12 runs, odometry 0.0376 -> 0.0389 m, SLAM 0.0367 -> 0.0378 m, both bars a
     /// centimetre away) and 0.4 mm of demo odometry ATE (0.0054 -> 0.0058 m); the measured
-    /// trade-off is in memory-budget.md ("Bars not met").
+    /// trade-off is in memory-budget.md ("Where the figures stand", instructions per frame).
     pub max_tracked: usize,
     /// A keyframe that starts (or restarts) tracking needs at least this many landmarks.
     /// Default 30.
