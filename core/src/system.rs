@@ -78,10 +78,12 @@ pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
 /// 12.0 against 8.5 mm). Not the bundle adjustment's depth weight (a temporary build, that
 /// weight at 1.5e-3: 3.1 / 4.8 / 5.7 mm; at 3e-3: 3.9 / 5.4 / 5.3 mm) nor its partial solves
 /// (`--backend-quota 100000`, each local BA solved within its frame: 6.4 / 5.5 / 5.4 mm). A
-/// likely cause, not tested: odometry averages every tracked frame's depth into its landmarks
-/// (up to `max_fused_measurements` readings), bundle adjustment sees the depth of keyframes
-/// only, a few readings a landmark, and noise independent from frame to frame favours the
-/// former. On 7-Scenes (real Kinect depth, whose error is partly fixed to the scene) SLAM is
+/// likely cause, tested only in part: odometry averages every tracked frame's depth into its
+/// landmarks (up to `max_fused_measurements` readings), bundle adjustment sees the depth of
+/// keyframes only, a few readings a landmark, and noise independent from frame to frame favours
+/// the former. With odometry's fusion capped at 2 readings instead of 20 (a temporary build)
+/// odometry went to 4.9 / 4.4 / 5.4 mm, near SLAM; capped at 5, 6.5 / 3.8 / 3.8 mm: three seeds
+/// do not settle it. On 7-Scenes (real Kinect depth, whose error is partly fixed to the scene) SLAM is
 /// the better of the two on average (`memory-budget.md`). A real sequence with such noise
 /// (issue 4's held-out TUM one) would tell which holds there.
 pub const SLAM_FRONTEND: FrontendParams =
