@@ -70,7 +70,8 @@ mod tests {
     /// The correctly rounded square root of a positive finite `x`, from integers only: the
     /// reference the FPU's `VSQRT.F32` and libm both meet.
     fn reference(x: f32) -> f32 {
-        // x = m * 2^e with m an integer; scale so the root has 2 * 24 + 2 bits to round from.
+        // x = m * 2^e with m an integer; m is scaled by 2^100 or 2^101 so that its integer root
+        // has about 62 bits to round to 24 from.
         let bits = x.to_bits();
         let exp = ((bits >> 23) & 0xff) as i32;
         let (mant, e) = if exp == 0 {
@@ -115,7 +116,7 @@ mod tests {
     #[test]
     fn correctly_rounded_over_many_values() {
         let mut checked = 0;
-        // Every 2^17-th bit pattern of the positive finite floats, subnormals included.
+        // Every 2^16-th bit pattern of the positive finite floats, subnormals included.
         for bits in (1u32..0x7f80_0000).step_by(1 << 16) {
             let x = f32::from_bits(bits);
             assert_eq!(sqrtf(x).to_bits(), reference(x).to_bits(), "sqrt of {x:e}");
