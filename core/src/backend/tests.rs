@@ -1,4 +1,6 @@
-//! Back-end tests (compiled only under `cfg(test)`).
+//! Back-end tests.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 //!
 //! The split of a step into [`Backend::advance_solve`] and [`Backend::finish_solve`] is checked on
 //! real frames in the workspace tests (`slam_determinism`: the back end on its own thread gives

@@ -1,4 +1,6 @@
-//! Map unit tests (compiled only under `cfg(test)`).
+//! Map unit tests.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 
 use nalgebra::Point3;
 

@@ -1,5 +1,7 @@
 //! Tests of the wire format: round trips, and recovery with exact counts after every kind of
-//! corruption. Compiled only under `cfg(test)`.
+//! corruption.
+//!
+//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
 
 extern crate std;
 
