@@ -83,9 +83,14 @@ pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
 /// keyframes only, a few readings a landmark, and noise independent from frame to frame favours
 /// the former. With odometry's fusion capped at 2 readings instead of 20 (a temporary build)
 /// odometry went to 4.9 / 4.4 / 5.4 mm, near SLAM; capped at 5, 6.5 / 3.8 / 3.8 mm: three seeds
-/// do not settle it. On 7-Scenes (real Kinect depth, whose error is partly fixed to the scene) SLAM is
-/// the better of the two on average (`memory-budget.md`). A real sequence with such noise
-/// (issue 4's held-out TUM one) would tell which holds there.
+/// do not settle it. The remedy that cause suggests did not help: a temporary build gave each
+/// keyframe observation the depth of the landmark's readings averaged (weights `1/z^4`, world
+/// points through each frame's tracked pose) over the frames tracked since the previous keyframe,
+/// about 15 on the demo, instead of the keyframe's one reading. Over seeds 0-9 SLAM's mean went
+/// from 5.67 to 5.90 mm, better in 3 of 10 seeds; it is not adopted. On 7-Scenes (real Kinect
+/// depth, whose error is partly fixed to the scene) SLAM is the better of the two on average
+/// (`memory-budget.md`). A real sequence with such noise (issue 4's held-out TUM one, checked by
+/// `cargo xtask heldout` once it is in `../shared/datasets`) would tell which holds there.
 pub const SLAM_FRONTEND: FrontendParams =
     FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 
