@@ -111,6 +111,7 @@ pub fn run_all() -> Result<()> {
         crate::registration::check_file(root().join(SEVEN_SCENES_CALIBRATION))
     })?;
     step("7-Scenes replays (odometry, SLAM), accuracy bars", replay_seven_scenes_both)?;
+    step("held-out TUM sequences (issue 4's 0.010 m bar), when present", crate::heldout::ci_step)?;
     step("demo", || {
         cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])
     })?;
@@ -202,35 +203,52 @@ const SEVEN_SCENES_SLAM_BAR_M: f64 = 0.050;
 /// Replays 7-Scenes at QVGA in `mode` into `target/ci/replay-7scenes-<mode>`, checks that all
 /// 1000 frames were tracked and the ATE RMSE is within `bar_m`, and returns the ATE.
 fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
-    let out = format!("target/ci/replay-7scenes-{mode}");
-    let args = [
-        "replay",
-        SEVEN_SCENES,
-        "--calibration",
-        SEVEN_SCENES_CALIBRATION,
-        "--out",
-        &out,
-        "--mode",
-        mode,
-        "--profile",
-        "qvga",
-    ];
-    cargo(&[&["run", "--release", "-p", "ferroslam-sim", "--"][..], &args[..]].concat())?;
-    let report = read_report(&root().join(&out))?;
+    let out = root().join(format!("target/ci/replay-7scenes-{mode}"));
+    let dataset = root().join(SEVEN_SCENES);
+    let calibration = root().join(SEVEN_SCENES_CALIBRATION);
+    let (frames, ate) =
+        replay_with_bar("7-Scenes", &dataset, Some(&calibration), mode, Some(bar_m), &out)?;
+    if frames != 1000 {
+        bail!("7-Scenes {mode}: {frames} frames processed; all 1000 must be");
+    }
+    Ok(ate)
+}
+
+/// Replays `dataset` (with `calibration`, else its own) at QVGA from its first frame in `mode`
+/// into `out`; fails when a frame was not tracked or the ATE RMSE is over `bar_m` (when given).
+/// Returns the frames processed and the ATE RMSE in metres; `label` names the data in messages.
+pub fn replay_with_bar(
+    label: &str,
+    dataset: &Path,
+    calibration: Option<&Path>,
+    mode: &str,
+    bar_m: Option<f64>,
+    out: &Path,
+) -> Result<(u64, f64)> {
+    let path = |p: &Path| p.to_string_lossy().into_owned();
+    let mut args: Vec<String> =
+        ["run", "--release", "-p", "ferroslam-sim", "--", "replay"].map(String::from).into();
+    args.push(path(dataset));
+    if let Some(c) = calibration {
+        args.extend(["--calibration".into(), path(c)]);
+    }
+    args.extend(["--out".into(), path(out), "--mode".into(), mode.into()]);
+    args.extend(["--profile".into(), "qvga".into()]);
+    cargo(&args.iter().map(String::as_str).collect::<Vec<_>>())?;
+    let report = read_report(out)?;
     let count =
         |key: &str| report[key].as_u64().with_context(|| format!("report.json has no count {key}"));
     let (frames, tracked) = (count("frames")?, count("tracked_frames")?);
     let ate = report["ate_rmse_m"].as_f64().context("report.json has no ate_rmse_m")?;
-    eprintln!(
-        "7-Scenes {mode}: {frames} frames, {tracked} tracked, ATE RMSE {ate:.4} m (bar {bar_m} m)"
-    );
-    if frames != 1000 || tracked != 1000 {
-        bail!("7-Scenes {mode}: {frames} frames processed and {tracked} tracked; all 1000 must be");
+    let bar = bar_m.map_or_else(|| "no bar".to_string(), |b| format!("bar {b:.3} m"));
+    eprintln!("{label} {mode}: {frames} frames, {tracked} tracked, ATE RMSE {ate:.4} m ({bar})");
+    if frames == 0 || tracked != frames {
+        bail!("{label} {mode}: {frames} frames processed and {tracked} tracked; all must be");
     }
-    if ate > bar_m {
-        bail!("7-Scenes {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m} m");
+    if let Some(bar_m) = bar_m.filter(|b| ate > *b) {
+        bail!("{label} {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m:.3} m");
     }
-    Ok(ate)
+    Ok((frames, ate))
 }
 
 /// The `report.json` a `ferroslam-sim replay --out dir` wrote.

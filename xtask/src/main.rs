@@ -5,7 +5,8 @@
 //! - `ci`: formatting, clippy (host and thumb), docs, host tests, the no-allocator thumb build of
 //!   core and firmware (both binaries), the firmware in QEMU checked pose by pose against the host
 //!   replay, the budgets of `memory-budget.md` on that same QEMU run, and replays of the real and
-//!   synthetic data through the host simulator.
+//!   synthetic data through the host simulator (a held-out TUM sequence too, when
+//!   `../shared/datasets` holds one).
 //! - `firmware-replay DATASET [--calibration FILE] [--max-frames N] [--out DIR]`: only the QEMU
 //!   comparison (default 60 frames, `target/xtask/firmware-replay`; 7-Scenes with its registered
 //!   calibration unless `--calibration` says otherwise); see `replay.rs`.
@@ -29,6 +30,10 @@
 //!   to colour, from the images, and prints a calibration file
 //!   (`calibration/7scenes-kinect-v1.toml` came from it; `--check FILE` compares the estimate
 //!   with a file instead, as `ci` does); see `registration.rs`.
+//! - `heldout [--dataset DIR]...`: issue 4's 0.010 m bar on a real TUM sequence kept aside from
+//!   tuning, with SLAM better than odometry (default: every recording with ground truth in
+//!   `../shared/datasets` other than 7-Scenes; `ci` runs it, and says when there is none); see
+//!   `heldout.rs`.
 
 mod bench;
 mod budget_doc;
@@ -37,6 +42,7 @@ mod budgets;
 mod ci;
 mod cost;
 mod firmware;
+mod heldout;
 mod profile;
 mod registration;
 mod replay;
@@ -58,6 +64,7 @@ fn main() -> ExitCode {
         Some("profile-firmware") => profile::run(&args[1..]),
         Some("spread") => spread::run(&args[1..]),
         Some("calibrate-depth") => registration::run(&args[1..]),
+        Some("heldout") => heldout::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
@@ -68,7 +75,7 @@ fn main() -> ExitCode {
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
                  [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] \
-                 [--step N] [--check FILE]>"
+                 [--step N] [--check FILE] | heldout [--dataset DIR]...>"
             );
             return ExitCode::from(2);
         }
