@@ -73,24 +73,35 @@ pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
 /// 8 of 12. Bundle adjustment's positions are better alone.
 ///
 /// Where SLAM loses to odometry: the demo with Kinect-like depth noise drawn anew on every frame
-/// (`ferroslam-sim demo --depth-noise 0.0015 --seed S [--mode odometry]`, seeds 0, 1, 2): SLAM
-/// 4.6 / 3.9 / 7.1 mm against odometry 4.4 / 3.7 / 3.7 mm (with 5% depth holes too, seed 0:
-/// 12.0 against 8.5 mm). Not the bundle adjustment's depth weight (a temporary build, that
-/// weight at 1.5e-3: 3.1 / 4.8 / 5.7 mm; at 3e-3: 3.9 / 5.4 / 5.3 mm) nor its partial solves
-/// (`--backend-quota 100000`, each local BA solved within its frame: 6.4 / 5.5 / 5.4 mm). A
-/// likely cause, tested only in part: odometry averages every tracked frame's depth into its
-/// landmarks (up to `max_fused_measurements` readings), bundle adjustment sees the depth of
-/// keyframes only, a few readings a landmark, and noise independent from frame to frame favours
-/// the former. With odometry's fusion capped at 2 readings instead of 20 (a temporary build)
-/// odometry went to 4.9 / 4.4 / 5.4 mm, near SLAM; capped at 5, 6.5 / 3.8 / 3.8 mm: three seeds
-/// do not settle it. The remedy that cause suggests did not help: a temporary build gave each
-/// keyframe observation the depth of the landmark's readings averaged (weights `1/z^4`, world
-/// points through each frame's tracked pose) over the frames tracked since the previous keyframe,
-/// about 15 on the demo, instead of the keyframe's one reading. Over seeds 0-9 SLAM's mean went
-/// from 5.67 to 5.90 mm, better in 3 of 10 seeds; it is not adopted. On 7-Scenes (real Kinect
-/// depth, whose error is partly fixed to the scene) SLAM is the better of the two on average
-/// (`memory-budget.md`). A real sequence with such noise (issue 4's held-out TUM one, checked by
-/// `cargo xtask heldout` once it is in `../shared/datasets`) would tell which holds there.
+/// (`ferroslam-sim demo --depth-noise 0.0015 --seed S [--mode odometry]`). Over seeds 0-9 SLAM
+/// averaged 5.67 mm and odometry 3.97 mm, SLAM better in 1 of 10 (seeds 0, 1, 2: SLAM 4.6 /
+/// 3.9 / 7.1 mm, odometry 4.4 / 3.7 / 3.7 mm; with 5% depth holes too, seed 0: 12.0 against
+/// 8.5 mm). Measured and ruled out, each in a temporary build unless said:
+/// - the bundle adjustment's depth weight (at 1.5e-3, seeds 0-2: 3.1 / 4.8 / 5.7 mm; at 3e-3:
+///   3.9 / 5.4 / 5.3 mm);
+/// - its partial solves (`--backend-quota 100000`, each local BA solved within its frame: 6.4 /
+///   5.5 / 5.4 mm);
+/// - keyframe observations given the depth averaged (weights `1/z^4`, world points through each
+///   frame's tracked pose) over the frames tracked since the previous keyframe, about 15 here,
+///   instead of the keyframe's one reading: seeds 0-9 mean 5.90 mm, better in 3 of 10;
+/// - depth fusion on in SLAM mode too: seeds 0-9 mean 5.70 mm.
+///
+/// What the runs do show (seed 3, where SLAM gives 7.2 mm and odometry 3.5 mm): the front end
+/// with fusion and the back end all but idle (`--backend-quota 0`) gives odometry's 3.5 mm,
+/// without fusion 7.3 mm, so fusing every frame's depth is worth the whole gap; BA on top of
+/// fusion gives 7.9 mm. With every landmark held fixed in BA (the keyframes adjusted against the
+/// fused landmarks alone, BA's depth coefficient at 0.05 1/m so that pixels decide), the
+/// keyframes' ATE went from 2.51 mm (their online poses) to 3.73 mm:
+/// the fused landmarks carry the drift of the frames fused after the keyframe, and re-solving the
+/// keyframe against them moves it off the poses its frames were tracked from. Without fusion the
+/// same pose-only BA leaves the keyframes where tracking put them (7.10 against 7.15 mm). Under
+/// depth noise independent from frame to frame, re-adjusting keyframes costs more than their
+/// few depth readings give. On 7-Scenes (real Kinect depth) fusion is a coin flip even for
+/// odometry (start frames 0 / 300 / 600: 0.0423 / 0.0361 / 0.0357 m with it, 0.0404 / 0.0433 /
+/// 0.0342 m without), so its depth error does not behave that way, and SLAM is the better of
+/// the two on average (`memory-budget.md`). A real sequence with independent noise (issue 4's
+/// held-out TUM one, checked by `cargo xtask heldout` once it is in `../shared/datasets`) would
+/// tell which holds there.
 pub const SLAM_FRONTEND: FrontendParams =
     FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 
