@@ -54,11 +54,6 @@ pub fn run(args: &[String]) -> Result<()> {
     check_all(&datasets)
 }
 
-/// The CI step: the held-out sequences `../shared/datasets` holds, if any.
-pub fn ci_step() -> Result<()> {
-    check_all(&discover(&root().join(SEVEN_SCENES))?)
-}
-
 /// Checks every folder of `datasets`; with none, prints that the bar is not checked.
 fn check_all(datasets: &[PathBuf]) -> Result<()> {
     if datasets.is_empty() {
