@@ -78,7 +78,7 @@ pub type HostScaleSlam<const W: usize, const H: usize> = Slam<
 /// 3.9 / 7.1 mm, odometry 4.4 / 3.7 / 3.7 mm; with 5% depth holes too, seed 0: 12.0 against
 /// 8.5 mm). Measured and ruled out, each in a temporary build unless said:
 /// - the bundle adjustment's depth weight (at 1.5e-3, seeds 0-2: 3.1 / 4.8 / 5.7 mm; at 3e-3:
-///   3.9 / 5.4 / 5.3 mm);
+///   3.9 / 5.4 / 5.3 mm; at 1e-3, seeds 0-9: mean 5.30 mm, better in 6 of 10);
 /// - its partial solves (`--backend-quota 100000`, each local BA solved within its frame: 6.4 /
 ///   5.5 / 5.4 mm);
 /// - keyframe observations given the depth averaged (weights `1/z^4`, world points through each
