@@ -27,9 +27,10 @@
 //!   and host: postcard bodies, CRC-32, COBS framing, and a stream decoder that resynchronizes.
 //!
 //! Rules: no heap (every capacity is in a type), no `unsafe`, no panics on bad input (errors are
-//! values), f32 arithmetic with transcendental functions through the pure-Rust `libm` on every target
-//! so the host and the Cortex-M give the same bits (the square root through `ferroslam_fpu::sqrtf`,
-//! the FPU's correctly rounded `VSQRT.F32` on the board and libm's equal result elsewhere); time and ids are inputs, never read from a clock.
+//! values), f32 arithmetic with transcendental functions through the pure-Rust `libm` on every
+//! target so the host and the Cortex-M give the same bits (the square root through
+//! `ferroslam_fpu::sqrtf`, the FPU's correctly rounded `VSQRT.F32` on the board and libm's equal
+//! result elsewhere); time and ids are inputs, never read from a clock.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]

@@ -44,8 +44,9 @@
 //!
 //! # Determinism
 //!
-//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), correctly rounded square roots (`ferroslam_fpu::sqrtf`: the FPU on the board, libm on the host),
-//! the bank's sines and cosines as literals; ties go to the first candidate in scan order.
+//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), correctly rounded square
+//! roots (`ferroslam_fpu::sqrtf`: the FPU on the board, libm on the host), the bank's sines and
+//! cosines as literals; ties go to the first candidate in scan order.
 
 mod affine;
 mod patch;

@@ -60,8 +60,9 @@
 //!
 //! # Determinism
 //!
-//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), correctly rounded square roots (`ferroslam_fpu::sqrtf`: the FPU on the board, libm on the host);
-//! ties go to the first candidate in scan order (rows top to bottom, each left to right).
+//! Plain f32 adds and multiplies in fixed orders (never `mul_add`), correctly rounded square
+//! roots (`ferroslam_fpu::sqrtf`: the FPU on the board, libm on the host); ties go to the first
+//! candidate in scan order (rows top to bottom, each left to right).
 
 mod integer_search;
 mod sample;

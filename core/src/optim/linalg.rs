@@ -4,7 +4,8 @@
 //!
 //! Plain `[f32; N]` arrays keep the solver's storage `const`-constructible and its arithmetic
 //! explicit: every sum below runs in a fixed order with `+ - * /` only (no `mul_add`), square roots
-//! through `libm` (square roots through `ferroslam_fpu::sqrtf`, correctly rounded like libm's), so the same inputs give the same bits on every target.
+//! through `ferroslam_fpu::sqrtf` (correctly rounded, like libm's), so the same inputs give the
+//! same bits on every target.
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 

@@ -113,9 +113,10 @@
 //! # Determinism
 //!
 //! f32 `+ - * /` in a fixed order (points, their observations, cameras and rigs in insertion
-//! order; no `mul_add`), square roots through `ferroslam_fpu` (correctly rounded, as libm's), SE(3) exp through `libm`; costs summed with Kahan
-//! compensation. No input (NaN, empty, all fixed, degenerate geometry) panics: input is checked
-//! when added ([`BaError`]), numerical trouble ends the solve with a [`Termination`].
+//! order; no `mul_add`), square roots through `ferroslam_fpu` (correctly rounded, as libm's),
+//! SE(3) exp through `libm`; costs summed with Kahan compensation. No input (NaN, empty, all
+//! fixed, degenerate geometry) panics: input is checked when added ([`BaError`]), numerical
+//! trouble ends the solve with a [`Termination`].
 //!
 //! # Cost measurement
 //!

@@ -31,9 +31,10 @@
 //!
 //! # Determinism
 //!
-//! f32 `+ - * /` only (no `mul_add`), square roots through `ferroslam_fpu` (correctly rounded, the same bits everywhere), logarithms through `libm`, exp/log of
-//! SE(3) through [`geometry`](crate::geometry), correspondences visited in slice order, random
-//! numbers from a caller-seeded [`TrackingRng`].
+//! f32 `+ - * /` only (no `mul_add`), square roots through `ferroslam_fpu` (correctly rounded,
+//! the same bits everywhere), logarithms through `libm`, exp/log of SE(3) through
+//! [`geometry`](crate::geometry), correspondences visited in slice order, random numbers from a
+//! caller-seeded [`TrackingRng`].
 
 use core::fmt;
 
