@@ -11,13 +11,18 @@
 //! - [`eval`]: ATE and RPE as evo computes them;
 //! - [`plot`]: trajectory and error plots;
 //! - [`serial`]: the firmware's UART captures decoded, and host writers of the telemetry port;
-//! - [`commands`]: the CLI's subcommands.
+//! - [`run`]: runs of the data path, odometry and SLAM over any frame source: the library API
+//!   behind `replay` and `demo`, which xtask and the tests call;
+//! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
+//! - [`commands`]: the CLI's subcommands, thin: arguments in, a run, its outputs.
 
 pub mod commands;
 pub mod dataset;
 pub mod eval;
 pub mod frame;
 pub mod plot;
+pub mod report;
+pub mod run;
 pub mod serial;
 pub mod synth;
 pub mod trajectory;

@@ -8,12 +8,12 @@ use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::QVGA;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
-use ferroslam_sim::commands::datapath::{MapScale, OdometryRun, Schedule, TrackMode, run_odometry};
 use ferroslam_sim::dataset::{Dataset, DatasetOptions};
+use ferroslam_sim::run::{self, MapScale, RunOptions, Schedule, TrackMode, TrackingRun};
 
 const FRAMES: usize = 120;
 
-fn replay(quota: u32, schedule: Schedule) -> OdometryRun {
+fn replay(quota: u32, schedule: Schedule) -> TrackingRun {
     let dir = ferroslam_tests::workspace_root().join("../shared/datasets/7scenes-redkitchen-1000");
     let opts = DatasetOptions { max_frames: Some(FRAMES), ..DatasetOptions::default() };
     let dataset = Dataset::open(&dir, &opts).unwrap();
@@ -21,22 +21,16 @@ fn replay(quota: u32, schedule: Schedule) -> OdometryRun {
     let cam =
         PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize).unwrap();
     let mut reader = dataset.into_reader(4);
-    run_odometry(
-        &mut reader,
-        FRAMES,
-        &cam,
-        QVGA,
-        TrackMode::Slam {
-            quota,
-            schedule,
-            map: MapScale::Board,
-            window_levels: BackendParams::DEFAULT.window_levels,
-        },
-    )
-    .unwrap()
+    let mode = TrackMode::Slam {
+        quota,
+        schedule,
+        map: MapScale::Board,
+        window_levels: BackendParams::DEFAULT.window_levels,
+    };
+    run::track(&mut reader, FRAMES, &cam, &RunOptions::new(QVGA, mode)).unwrap()
 }
 
-fn assert_same_bytes(a: &OdometryRun, b: &OdometryRun) {
+fn assert_same_bytes(a: &TrackingRun, b: &TrackingRun) {
     assert_eq!(a.camera.to_tum_string(), b.camera.to_tum_string());
     assert_eq!(a.online.to_tum_string(), b.online.to_tum_string());
     assert_eq!(a.keyframes.to_tum_string(), b.keyframes.to_tum_string());

@@ -7,7 +7,7 @@
 //!    frame into its QVGA store two rows at a time, runs the pipeline and sends pose and cost
 //!    messages out of UART0 (`uart.bin`).
 //! 3. Decodes the capture with the core's wire decoder; any dropped frame or fault fails the run.
-//! 4. Runs `ferroslam-sim replay`'s SLAM mode (`datapath::run_odometry`, same back-end quota per
+//! 4. Runs `ferroslam-sim replay`'s SLAM mode (`ferroslam_sim::run::track`, same back-end quota per
 //!    frame as the firmware) on the same frames at QVGA, and compares every pose as it was output
 //!    frame by frame: timestamp, translation and quaternion as f32 bits, state,
 //!    flags, inliers and matches.
@@ -26,15 +26,13 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
-use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::system::DEFAULT_BACKEND_QUOTA;
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
-use ferroslam_sim::commands::datapath::{MapScale, OdometryRun, Schedule, TrackMode, run_odometry};
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
+use ferroslam_sim::run::{self, RunOptions, TrackMode, TrackingRun};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
@@ -161,13 +159,8 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
-    let mode = TrackMode::Slam {
-        quota: DEFAULT_BACKEND_QUOTA,
-        schedule: Schedule::Threaded,
-        map: MapScale::Board,
-        window_levels: BackendParams::DEFAULT.window_levels,
-    };
-    let host = run_odometry(&mut reader, frames, &cam, QVGA, mode)?;
+    // The firmware's settings: the board's map and quota (`TrackMode::SLAM`).
+    let host = run::track(&mut reader, frames, &cam, &RunOptions::new(QVGA, TrackMode::SLAM))?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
     let work: Vec<FrontendWork> = host
@@ -249,7 +242,7 @@ fn field<T: PartialEq + Display>(name: &str, fw: T, host: T) -> Option<String> {
 }
 
 /// The first field that differs, as `frame N (t = T s), FIELD: firmware X, host Y`.
-fn first_difference(fw: &[PoseMessage], host: &OdometryRun) -> Option<String> {
+fn first_difference(fw: &[PoseMessage], host: &TrackingRun) -> Option<String> {
     let n = fw.len().max(host.online.len());
     for i in 0..n {
         let (Some(p), Some(h), Some(hf)) =
@@ -310,7 +303,7 @@ fn first_difference(fw: &[PoseMessage], host: &OdometryRun) -> Option<String> {
 }
 
 /// Writes `firmware_trajectory.txt` and `host_trajectory.txt` (TUM).
-fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &OdometryRun) -> Result<()> {
+fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &TrackingRun) -> Result<()> {
     Trajectory::new(fw.iter().map(stamped_pose).collect())
         .write_tum(&out.join("firmware_trajectory.txt"))?;
     host.online.write_tum(&out.join("host_trajectory.txt"))?;
@@ -367,7 +360,7 @@ mod tests {
     #![allow(clippy::unwrap_used)]
 
     use super::*;
-    use ferroslam_sim::commands::datapath::{DataPathRun, OdometryFrame};
+    use ferroslam_sim::run::{DataPathRun, TrackedFrame};
 
     fn pose(i: u32) -> PoseMessage {
         PoseMessage {
@@ -383,10 +376,10 @@ mod tests {
     }
 
     /// The host run the poses `fw` say happened.
-    fn host_of(fw: &[PoseMessage]) -> OdometryRun {
+    fn host_of(fw: &[PoseMessage]) -> TrackingRun {
         let per_frame = fw
             .iter()
-            .map(|p| OdometryFrame {
+            .map(|p| TrackedFrame {
                 timestamp_s: p.timestamp_s,
                 state: "tracking",
                 tracked: true,
@@ -411,7 +404,7 @@ mod tests {
             source_wait_s: 0.0,
             process_s: 0.0,
         };
-        OdometryRun {
+        TrackingRun {
             data,
             camera: Trajectory::new(fw.iter().map(stamped_pose).collect()),
             online: Trajectory::new(fw.iter().map(stamped_pose).collect()),

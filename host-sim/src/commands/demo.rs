@@ -9,11 +9,11 @@ use ferroslam_core::config::Tunables;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
-use super::datapath::{self, ProfileSource, depth_level_parser};
-use super::replay::{ModeArg, ProfileArg, SlamArgs, summary};
-use super::report::{Report, write_odometry};
+use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser};
 use crate::eval;
 use crate::plot;
+use crate::report::{Report, run_note, summary, with_depth_level, write_odometry};
+use crate::run::{self, ProfileSource, RunOptions};
 use crate::synth::rng::SplitMix64;
 use crate::synth::{SynthOptions, SynthSource, SyntheticSequence, write_pngs};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -127,15 +127,15 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             depth_noise_coeff_per_m: sensor_depth_noise(args.depth_noise),
             ..Tunables::default()
         };
-        let run =
-            datapath::run_seeded(&mut source, frames, &cam, profile, track_mode, None, &tunables)?;
+        let options = RunOptions { tunables, ..RunOptions::new(profile, track_mode) };
+        let run = run::track(&mut source, frames, &cam, &options)?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = format!(
             "{} synthetic frames rendered at 640x480; {}; depth noise given to the core {:.1e} \
              1/m in inverse depth",
             run.data.frames,
-            super::replay::with_depth_level(
-                super::replay::run_note(args.mode, profile.name, (run.data.width, run.data.height)),
+            with_depth_level(
+                run_note(&track_mode, profile.name, (run.data.width, run.data.height)),
                 depth_level
             ),
             tunables.depth_noise_coeff_per_m
@@ -150,7 +150,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         profile.downsample_levels,
         depth_level,
     );
-    let run = datapath::run(&mut source, frames)?;
+    let run = run::data_path(&mut source, frames)?;
     let elapsed = started.elapsed().as_secs_f64();
 
     // No tracker exists yet: evaluate a simulated dead-reckoning baseline instead (see

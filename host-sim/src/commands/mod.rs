@@ -11,12 +11,10 @@
 //! Every error is printed with its causes (file and line where there is one) and the process exits
 //! with status 1; usage errors exit with status 2.
 
-pub mod datapath;
+pub mod args;
 pub mod decode_serial;
 pub mod demo;
 pub mod replay;
-pub mod report;
-pub mod slam;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -2,96 +2,18 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
 use std::time::Instant;
 
-use ferroslam_core::config::{Profile, QVGA, Tunables, VGA};
+use anyhow::{Context, Result};
+use clap::Args;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
-use super::datapath::{self, depth_level_parser};
-use super::report::{Report, write_odometry};
+use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser};
 use crate::dataset::{CalibrationOrigin, CalibrationSource, Dataset, DatasetOptions};
 use crate::plot;
-
-/// The processing resolution.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ProfileArg {
-    /// 320x240: the sensor's 640x480 frames halved once (the reference board).
-    Qvga,
-    /// 640x480: full resolution.
-    Vga,
-}
-
-impl ProfileArg {
-    /// The core's profile.
-    pub fn profile(self) -> Profile {
-        match self {
-            Self::Qvga => QVGA,
-            Self::Vga => VGA,
-        }
-    }
-}
-
-/// What `replay` runs on each frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ModeArg {
-    /// The data path only: decoding, the profile's downsampling and the core's image statistics.
-    DataPath,
-    /// The data path, then the core's frame-to-map front end alone (depth fused into the
-    /// landmarks; no bundle adjustment).
-    Odometry,
-    /// Front end, map and back end (local and segmented global bundle adjustment), the back end
-    /// getting a fixed work quota after every frame (deterministic).
-    Slam,
-}
-
-impl ModeArg {
-    /// The tracker mode, run in SLAM mode as `slam` says.
-    pub fn track_mode(self, slam: &SlamArgs) -> Option<datapath::TrackMode> {
-        match self {
-            Self::DataPath => None,
-            Self::Odometry => Some(datapath::TrackMode::Odometry),
-            Self::Slam => Some(datapath::TrackMode::Slam {
-                quota: slam.backend_quota,
-                schedule: slam.schedule,
-                map: slam.map,
-                window_levels: slam.window_levels,
-            }),
-        }
-    }
-
-    /// The mode's name in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::DataPath => "data-path",
-            Self::Odometry => "odometry",
-            Self::Slam => "slam",
-        }
-    }
-}
-
-/// The back-end options of SLAM mode, shared by `replay` and `demo`.
-#[derive(Debug, Args)]
-pub struct SlamArgs {
-    /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
-    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
-    pub backend_quota: u32,
-    /// How the back end runs beside the front end (SLAM mode).
-    #[arg(long, value_enum, default_value = "threaded")]
-    pub schedule: datapath::Schedule,
-    /// The capacities of the map and the back end (SLAM mode).
-    #[arg(long, value_enum, default_value = "board")]
-    pub map: datapath::MapScale,
-    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
-    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
-    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
-    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
-    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
-          value_parser = clap::value_parser!(u8).range(1..))]
-    pub window_levels: u8,
-}
+use crate::report::{Report, run_note, summary, with_depth_level, write_odometry};
+use crate::run::{self, RunOptions};
 
 /// Arguments of `replay`.
 #[derive(Debug, Args)]
@@ -169,18 +91,11 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
         let mut reader = dataset.into_reader(8);
         let started = Instant::now();
-        let run = datapath::run_seeded(
-            &mut reader,
-            frames,
-            &cam,
-            profile,
-            track_mode,
-            args.seed,
-            &Tunables::default(),
-        )?;
+        let options = RunOptions { seed: args.seed, ..RunOptions::new(profile, track_mode) };
+        let run = run::track(&mut reader, frames, &cam, &options)?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = with_depth_level(
-            run_note(args.mode, profile.name, (run.data.width, run.data.height)),
+            run_note(&track_mode, profile.name, (run.data.width, run.data.height)),
             depth_level,
         );
         let note = format!("{note}; {calibration_note}");
@@ -189,7 +104,7 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         return Ok(());
     }
     let mut reader = dataset.into_reader(8);
-    let run = datapath::run(&mut reader, frames)?;
+    let run = run::data_path(&mut reader, frames)?;
     let note = format!(
         "data path only: {} frames decoded, brought to {} ({}x{}) and measured by the core (W(I), \
          depth coverage); no tracking yet, so no CameraTrajectory.txt and no ATE",
@@ -214,22 +129,6 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     Ok(())
 }
 
-/// The report's note on what a tracking run did.
-pub fn run_note(mode: ModeArg, profile: &str, (width, height): (usize, usize)) -> String {
-    match mode {
-        ModeArg::Slam => format!(
-            "slam: frame-to-map front end, map and back end (local and segmented global bundle \
-             adjustment, fixed work quota per frame) at {profile} ({width}x{height}); \
-             CameraTrajectory.txt composes each frame's pose relative to its reference keyframe \
-             with that keyframe's final pose; no loop closure"
-        ),
-        _ => format!(
-            "odometry: frame-to-map front end at {profile} ({width}x{height}), depth fused into \
-             the landmarks; no bundle adjustment, no loop closure"
-        ),
-    }
-}
-
 /// Where the dataset's calibration came from, and whether a lens distortion is removed from its
 /// frames, for the report's note.
 fn calibration_note(dataset: &Dataset) -> String {
@@ -239,36 +138,4 @@ fn calibration_note(dataset: &Dataset) -> String {
     } else {
         format!("calibration: {origin}, lens distortion removed from the frames")
     }
-}
-
-/// `note`, plus what `--depth-level` changed when it is not 0.
-pub fn with_depth_level(note: String, depth_level: u8) -> String {
-    if depth_level == 0 {
-        return note;
-    }
-    let s = 1u32 << depth_level;
-    format!("{note}; depth kept {depth_level} halving(s) coarser than the gray image ({s}x{s} px)")
-}
-
-/// The one-line summary of an odometry run.
-pub fn summary(report: &Report, wall_s: f64) -> String {
-    let ate = match (report.ate_rmse_m, &report.evaluation_error) {
-        (Some(a), _) => format!("{a:.4} m"),
-        (None, Some(why)) => format!("n/a ({why})"),
-        (None, None) => "n/a (no ground truth)".to_owned(),
-    };
-    format!(
-        "{} ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
-         {:.1} s wall ({:.1} ms median per frame in the core); core state {} bytes",
-        report.mode,
-        report.profile,
-        report.frames,
-        report.tracked_frames,
-        report.lost_frames,
-        report.keyframes,
-        report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
-        wall_s,
-        report.host_cost.process_median / 1000.0,
-        report.state_bytes,
-    )
 }

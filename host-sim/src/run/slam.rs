@@ -18,7 +18,8 @@ use ferroslam_core::map::{KeyFrameId, Map};
 use ferroslam_core::system::{HostScaleSlam, Slam};
 use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState};
 
-use super::datapath::{BackendReport, OdometryRun, frame_figures, run_with};
+use super::data_path::drive;
+use super::result::{BackendReport, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
@@ -246,27 +247,37 @@ fn solve_finished(joined: std::thread::Result<Result<bool, BackendError>>) -> Re
     joined.map_err(|_| anyhow!("back-end thread panicked"))?.map_err(backend_error)
 }
 
-/// Runs `source` through a boxed `Slam<W, H>` with the map and back end of `scale` (front end
-/// with `frontend`, back end with `backend`) with `quota` back-end units after each frame, the
-/// back end scheduled by `schedule`.
+/// How a SLAM run is set up: the back end's quota per frame and schedule, the capacities of the
+/// map and back end, and the parameters of both halves.
+#[derive(Debug, Clone, Copy)]
+pub struct Setup {
+    /// Back-end work units after each frame.
+    pub quota: u32,
+    /// How the back end runs beside the front end.
+    pub schedule: Schedule,
+    /// The capacities of the map and the back end.
+    pub scale: MapScale,
+    /// The front end's parameters.
+    pub frontend: FrontendParams,
+    /// The back end's parameters.
+    pub backend: BackendParams,
+}
+
+/// Runs `source` through a boxed `Slam<W, H>` set up by `setup`.
 ///
 /// # Errors
-/// As [`run_with`]; a back-end error.
-#[allow(clippy::too_many_arguments)]
+/// As [`drive`]; a back-end error.
 pub fn run<const W: usize, const H: usize, S>(
     source: &mut S,
     expected: usize,
     cam: &PinholeCamera,
-    quota: u32,
-    schedule: Schedule,
-    scale: MapScale,
-    frontend: FrontendParams,
-    backend: BackendParams,
-) -> Result<OdometryRun>
+    setup: &Setup,
+) -> Result<TrackingRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
+    let Setup { quota, schedule, scale, frontend, backend } = *setup;
     match scale {
         MapScale::Board => {
             // The board's capacities: `Slam`'s defaults.
@@ -299,7 +310,7 @@ fn run_sized<
     quota: u32,
     schedule: Schedule,
     scale: MapScale,
-) -> Result<OdometryRun>
+) -> Result<TrackingRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
@@ -315,7 +326,7 @@ where
         record: &mut record,
         owed: false,
     };
-    let data = run_with(source, expected, |frame| {
+    let data = drive(source, expected, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         if r.state == FrontendState::Initializing {
@@ -365,7 +376,7 @@ where
         .collect();
     keyframes.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
     let stats = slam.frontend().stats();
-    Ok(OdometryRun {
+    Ok(TrackingRun {
         data,
         camera: Trajectory::new(camera),
         online: Trajectory::new(online),

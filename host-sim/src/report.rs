@@ -1,4 +1,5 @@
-//! `report.json`: what a run did, in the fields `shared/design.md` promises.
+//! What a run wrote: `report.json` (the fields `shared/design.md` promises), the trajectories,
+//! the plots, and the one-line summary and notes the console and the report give.
 
 use std::path::Path;
 
@@ -6,9 +7,11 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use sha2::Digest;
 
-use super::datapath::{BackendReport, DataPathRun, FrameStats, OdometryFrame, OdometryRun, median};
 use crate::eval::{self, EvalReport};
 use crate::plot;
+use crate::run::{
+    BackendReport, DataPathRun, FrameStats, TrackMode, TrackedFrame, TrackingRun, median,
+};
 use crate::trajectory::Trajectory;
 
 /// Wall-clock cost figures of the host run. Informational: the per-frame cost contract is counted
@@ -78,7 +81,7 @@ pub struct Report {
     pub backend: Option<BackendReport>,
     /// Per-frame front-end figures (odometry and SLAM modes).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub odometry: Vec<OdometryFrame>,
+    pub odometry: Vec<TrackedFrame>,
 }
 
 impl Report {
@@ -129,7 +132,7 @@ impl Report {
     /// An odometry report of `run`, with `evaluation` against ground truth when there is one and
     /// `sha256` of the CameraTrajectory.txt written.
     pub fn odometry(
-        run: &OdometryRun,
+        run: &TrackingRun,
         profile: &'static str,
         skipped: usize,
         note: String,
@@ -182,7 +185,7 @@ pub struct OdometryOutputs {
 /// near a ground-truth one) is not an error: its report has no ATE and says why.
 pub fn write_odometry(
     dir: &Path,
-    run: &OdometryRun,
+    run: &TrackingRun,
     gt: Option<&Trajectory>,
     profile: &'static str,
     skipped: usize,
@@ -222,4 +225,52 @@ pub fn write_odometry(
     report.evaluation_error = evaluation_error;
     report.write(dir)?;
     Ok(OdometryOutputs { report, evaluation })
+}
+
+/// The report's note on what a tracking run in `mode` did at `profile` (`width` x `height`).
+pub fn run_note(mode: &TrackMode, profile: &str, (width, height): (usize, usize)) -> String {
+    match mode {
+        TrackMode::Slam { .. } => format!(
+            "slam: frame-to-map front end, map and back end (local and segmented global bundle \
+             adjustment, fixed work quota per frame) at {profile} ({width}x{height}); \
+             CameraTrajectory.txt composes each frame's pose relative to its reference keyframe \
+             with that keyframe's final pose; no loop closure"
+        ),
+        TrackMode::Odometry => format!(
+            "odometry: frame-to-map front end at {profile} ({width}x{height}), depth fused into \
+             the landmarks; no bundle adjustment, no loop closure"
+        ),
+    }
+}
+
+/// `note`, plus what `--depth-level` changed when it is not 0.
+pub fn with_depth_level(note: String, depth_level: u8) -> String {
+    if depth_level == 0 {
+        return note;
+    }
+    let s = 1u32 << depth_level;
+    format!("{note}; depth kept {depth_level} halving(s) coarser than the gray image ({s}x{s} px)")
+}
+
+/// The one-line summary of a tracking run that took `wall_s` seconds.
+pub fn summary(report: &Report, wall_s: f64) -> String {
+    let ate = match (report.ate_rmse_m, &report.evaluation_error) {
+        (Some(a), _) => format!("{a:.4} m"),
+        (None, Some(why)) => format!("n/a ({why})"),
+        (None, None) => "n/a (no ground truth)".to_owned(),
+    };
+    format!(
+        "{} ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
+         {:.1} s wall ({:.1} ms median per frame in the core); core state {} bytes",
+        report.mode,
+        report.profile,
+        report.frames,
+        report.tracked_frames,
+        report.lost_frames,
+        report.keyframes,
+        report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
+        wall_s,
+        report.host_cost.process_median / 1000.0,
+        report.state_bytes,
+    )
 }

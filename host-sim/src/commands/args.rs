@@ -1,0 +1,82 @@
+//! Command-line arguments `replay` and `demo` share: the profile, the mode, SLAM's back-end
+//! options and the depth level.
+
+use clap::{Args, ValueEnum};
+use ferroslam_core::config::{Profile, QVGA, VGA};
+
+use crate::run::{MapScale, Schedule, TrackMode};
+
+/// The processing resolution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ProfileArg {
+    /// 320x240: the sensor's 640x480 frames halved once (the reference board).
+    Qvga,
+    /// 640x480: full resolution.
+    Vga,
+}
+
+impl ProfileArg {
+    /// The core's profile.
+    pub fn profile(self) -> Profile {
+        match self {
+            Self::Qvga => QVGA,
+            Self::Vga => VGA,
+        }
+    }
+}
+
+/// What `replay` and `demo` run on each frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    /// The data path only: decoding, the profile's downsampling and the core's image statistics.
+    DataPath,
+    /// The data path, then the core's frame-to-map front end alone (depth fused into the
+    /// landmarks; no bundle adjustment).
+    Odometry,
+    /// Front end, map and back end (local and segmented global bundle adjustment), the back end
+    /// getting a fixed work quota after every frame (deterministic).
+    Slam,
+}
+
+impl ModeArg {
+    /// The tracker mode, run in SLAM mode as `slam` says; `None` for the data path alone.
+    pub fn track_mode(self, slam: &SlamArgs) -> Option<TrackMode> {
+        match self {
+            Self::DataPath => None,
+            Self::Odometry => Some(TrackMode::Odometry),
+            Self::Slam => Some(TrackMode::Slam {
+                quota: slam.backend_quota,
+                schedule: slam.schedule,
+                map: slam.map,
+                window_levels: slam.window_levels,
+            }),
+        }
+    }
+}
+
+/// The back-end options of SLAM mode.
+#[derive(Debug, Args)]
+pub struct SlamArgs {
+    /// Back-end work units after each frame (SLAM mode); the same quota gives the same bits.
+    #[arg(long, default_value_t = ferroslam_core::system::DEFAULT_BACKEND_QUOTA)]
+    pub backend_quota: u32,
+    /// How the back end runs beside the front end (SLAM mode).
+    #[arg(long, value_enum, default_value = "threaded")]
+    pub schedule: Schedule,
+    /// The capacities of the map and the back end (SLAM mode).
+    #[arg(long, value_enum, default_value = "board")]
+    pub map: MapScale,
+    /// Covisibility levels a local bundle adjustment's window grows by (SLAM mode, 1-255): 1
+    /// takes the keyframes sharing landmarks with the new one, 2 also those sharing with them,
+    /// and so on; the window also stops at 65 keyframes or when no keyframe joins. The paper's
+    /// window of 50-65 keyframes in a map of over 120 takes `--map host --window-levels 255`.
+    #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
+          value_parser = clap::value_parser!(u8).range(1..))]
+    pub window_levels: u8,
+}
+
+/// The command-line parser of a `--depth-level`: 0 to the core's
+/// [`MAX_DEPTH_LEVEL`](ferroslam_core::image::MAX_DEPTH_LEVEL).
+pub fn depth_level_parser() -> clap::builder::RangedI64ValueParser<u8> {
+    clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL))
+}

@@ -1,0 +1,141 @@
+//! Runs: the library API behind `replay` and `demo`, which xtask and the tests call too.
+//!
+//! A run takes a [`FrameSource`] (a dataset reader, the synthetic renderer, either wrapped in a
+//! [`ProfileSource`] to reach a processing profile) and a [`PinholeCamera`] at the processing
+//! resolution, and runs on every frame one of:
+//!
+//! - the data path alone ([`data_path::data_path`]): timestamps checked, the core's image
+//!   statistics taken ([`DataPathRun`]);
+//! - odometry or SLAM ([`track`] with a [`TrackMode`]): the data path, then the core's front end
+//!   alone, or the front end, map and back end with a fixed work quota per frame
+//!   ([`slam::Schedule`] says how the back end runs beside the front end). The result
+//!   ([`TrackingRun`]) holds the trajectories, per-frame figures and the back end's record;
+//!   [`crate::report`] writes it out.
+//!
+//! Layers: `source`, `data_path` and `result` at the bottom; `odometry` and `slam` above them;
+//! this module's [`track`] on top, choosing the core's sizes for the profile.
+
+pub mod data_path;
+mod odometry;
+pub mod result;
+pub mod slam;
+pub mod source;
+
+use anyhow::Result;
+use ferroslam_core::backend::BackendParams;
+use ferroslam_core::config::{Profile, QVGA, Tunables};
+use ferroslam_core::frame::FrameSource;
+use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::system::SLAM_FRONTEND;
+use ferroslam_core::tracking::FrontendParams;
+
+pub use data_path::{DataPathRun, FrameStats, data_path, drive, median};
+pub use result::{BackendReport, TrackedFrame, TrackingRun};
+pub use slam::{MapScale, Schedule};
+pub use source::{ProfileSource, ProfileSourceError};
+
+/// What to run on each frame after the data path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrackMode {
+    /// The front end alone (depth fused into landmarks, no bundle adjustment).
+    Odometry,
+    /// Front end, map and back end, with `quota` back-end work units after every frame.
+    Slam {
+        /// Back-end work units per frame.
+        quota: u32,
+        /// How the back end runs beside the front end.
+        schedule: Schedule,
+        /// The capacities of the map and the back end.
+        map: MapScale,
+        /// Covisibility levels a local BA's window grows by (`BackendParams::window_levels`;
+        /// the default, 2, is the board's).
+        window_levels: u8,
+    },
+}
+
+impl TrackMode {
+    /// SLAM with the board's defaults: the firmware's quota, threaded schedule, board map and
+    /// window levels (what `replay --mode slam` runs unless told otherwise).
+    pub const SLAM: Self = Self::Slam {
+        quota: ferroslam_core::system::DEFAULT_BACKEND_QUOTA,
+        schedule: Schedule::Threaded,
+        map: MapScale::Board,
+        window_levels: BackendParams::DEFAULT.window_levels,
+    };
+}
+
+/// How a tracking run is set up, apart from its source and camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunOptions {
+    /// The processing profile: it sizes the core (QVGA: 320 x 240; VGA: 640 x 480).
+    pub profile: Profile,
+    /// Odometry or SLAM, and SLAM's back-end settings.
+    pub mode: TrackMode,
+    /// The front end's RANSAC seed (`None`: the core's default, `FrontendParams::rng_seed`).
+    /// Runs with other seeds show how much of an accuracy figure is chance.
+    pub seed: Option<u64>,
+    /// The sensor as the core is told it (depth range, depth noise), given to the front end and
+    /// the back end.
+    pub tunables: Tunables,
+}
+
+impl RunOptions {
+    /// `mode` at `profile` with the core's default seed and tunables.
+    pub fn new(profile: Profile, mode: TrackMode) -> Self {
+        Self { profile, mode, seed: None, tunables: Tunables::default() }
+    }
+}
+
+impl Default for RunOptions {
+    /// SLAM on the reference board's profile, as the firmware runs it.
+    fn default() -> Self {
+        Self::new(QVGA, TrackMode::SLAM)
+    }
+}
+
+/// Runs every frame of `source` (about `expected` of them, for the progress bar) through the
+/// core as `options` say, with the camera `cam` at the processing resolution. The front end
+/// takes the mode's defaults (odometry: `FrontendParams::DEFAULT`; SLAM:
+/// `system::SLAM_FRONTEND` and `BackendParams::DEFAULT`) with the options' seed and tunables.
+///
+/// # Errors
+/// As [`drive`]; a frame the front end rejects (size or timestamp); a back-end error.
+pub fn track<S>(
+    source: &mut S,
+    expected: usize,
+    cam: &PinholeCamera,
+    options: &RunOptions,
+) -> Result<TrackingRun>
+where
+    S: FrameSource,
+    S::Error: std::error::Error + Send + Sync + 'static,
+{
+    let seeded = |mut p: FrontendParams| {
+        if let Some(seed) = options.seed {
+            p.rng_seed = seed;
+        }
+        p.with_tunables(&options.tunables)
+    };
+    let (odometry, slam) = (seeded(FrontendParams::DEFAULT), seeded(SLAM_FRONTEND));
+    let mut backend = BackendParams::DEFAULT.with_tunables(&options.tunables);
+    if let TrackMode::Slam { window_levels, .. } = options.mode {
+        backend.window_levels = window_levels;
+    }
+    let vga = options.profile.downsample_levels == 0;
+    match (options.mode, vga) {
+        (TrackMode::Odometry, true) => {
+            odometry::run::<640, 480, S>(source, expected, cam, odometry)
+        }
+        (TrackMode::Odometry, false) => {
+            odometry::run::<320, 240, S>(source, expected, cam, odometry)
+        }
+        (TrackMode::Slam { quota, schedule, map, .. }, true) => {
+            let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
+            slam::run::<640, 480, S>(source, expected, cam, &setup)
+        }
+        (TrackMode::Slam { quota, schedule, map, .. }, false) => {
+            let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
+            slam::run::<320, 240, S>(source, expected, cam, &setup)
+        }
+    }
+}
