@@ -371,4 +371,30 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
             s.acc.valid += 1;
         }
     }
+
+    /// At least how many units pass `kind` still takes from `cur` before it is done: every unit
+    /// [`Self::run_point_pass`] charges from there, except the Schur sweeps of the linearization
+    /// whose points are not reached yet (whether one runs is known only after its first sweep).
+    pub(super) fn point_pass_units_at_least(&self, kind: PassKind, cur: PointCursor) -> u64 {
+        let mut units = 0u64;
+        for point in cur.point..self.problem.n_points {
+            let l = usize::from(point);
+            let (start, end) = self.problem.obs_range(l);
+            let here = point == cur.point;
+            let first_sweep = if here { cur.sweep } else { 0 };
+            for sweep in first_sweep..2 {
+                let runs = match (kind, sweep) {
+                    (PassKind::Linearize, 1) => here && cur.sweep == 1 && self.state.acc.active,
+                    _ => self.sweep_runs(kind, l, sweep),
+                };
+                if runs {
+                    let from = if here && sweep == cur.sweep { usize::from(cur.obs) } else { start };
+                    units += end.saturating_sub(from) as u64 + 1;
+                }
+            }
+            units += 1;
+        }
+        units
+    }
+
 }

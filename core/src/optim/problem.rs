@@ -13,7 +13,7 @@ use crate::geometry::Pose;
 /// The variables and data, in insertion order. Observations are stored grouped by point (the
 /// observations of point `l` are `point_end[l - 1]..point_end[l]`), which is what the Schur
 /// elimination visits.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct Problem<const R: usize, const C: usize, const P: usize, const O: usize> {
     /// `T_s`: the rig's world-to-rig pose (for a keyframe of local BA, its `t_cw`).
     pub(super) rig_pose: [StoredPose; R],

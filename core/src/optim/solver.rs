@@ -73,7 +73,7 @@ use crate::geometry::PinholeCamera;
 /// assert!((t1.translation.vector - truth[1].translation.vector).norm() < 1e-3);
 /// # Ok::<(), Box<dyn core::error::Error>>(())
 /// ```
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct BundleAdjuster<
     const RIGS: usize,
     const CAMERAS: usize,
@@ -167,6 +167,42 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         match self.state.phase {
             Phase::Finished => BaStatus::Finished(self.summary()),
             _ => BaStatus::Running,
+        }
+    }
+
+    /// At least how many work units the solve must still do before it can finish: a
+    /// [`Self::step`] with a smaller quota returns [`BaStatus::Running`]. An iteration can end the
+    /// solve at four points only (after the linearization, the reduction, the trial's decision and
+    /// the applied step); this counts the units to the nearest one ahead. 0 before
+    /// [`Self::start`] and once finished. Cost: one pass over the points.
+    pub fn units_before_finish(&self) -> u64 {
+        let (nc, nr) = (u64::from(self.problem.n_cams), u64::from(self.problem.n_rigs));
+        let left = |i: u32, n: u64| n.saturating_sub(u64::from(i));
+        let pass = |kind| self.point_pass_units_at_least(kind, PointCursor::START);
+        // The trial pass, then its decision (one unit).
+        let trial = |rigs: u64, cams: u64| rigs + cams + pass(PassKind::Trial) + 1;
+        match self.state.phase {
+            Phase::Idle | Phase::Finished => 0,
+            Phase::Prepare(i) => left(i, nc) + nc + nr + pass(PassKind::Linearize),
+            Phase::Clear(i) => left(i, nc + nr) + pass(PassKind::Linearize),
+            Phase::Linearize(cur) => self.point_pass_units_at_least(PassKind::Linearize, cur),
+            Phase::ReduceCams(i) => left(i, nc) + nr,
+            Phase::ReduceRigs(i) => left(i, nr),
+            // The conjugate gradients may stop after any of their iterations: the trial follows.
+            Phase::PcgStart(_)
+            | Phase::ProductMap(_)
+            | Phase::ProductObs(_)
+            | Phase::GatherRigs(_)
+            | Phase::GatherCams(_)
+            | Phase::GatherDot(_)
+            | Phase::Update(_)
+            | Phase::Direction(_) => trial(nr, nc),
+            Phase::TrialRigs(i) => trial(left(i, nr), nc),
+            Phase::TrialCams(i) => trial(0, left(i, nc)),
+            Phase::TrialObs(cur) => self.point_pass_units_at_least(PassKind::Trial, cur) + 1,
+            Phase::Decide => 1,
+            Phase::Apply(cur) => self.point_pass_units_at_least(PassKind::Apply, cur) + nr,
+            Phase::ApplyRigs(i) => left(i, nr),
         }
     }
 

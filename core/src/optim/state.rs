@@ -137,7 +137,7 @@ impl Pcg {
 }
 
 /// Everything but the problem and the per-variable workspace.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct State {
     pub(super) phase: Phase,
     pub(super) model: Model,
@@ -209,7 +209,7 @@ impl State {
 }
 
 /// Per-rig and per-camera workspace.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct Workspace<const R: usize, const C: usize> {
     pub(super) rig_trial: [StoredPose; R],
     /// Free and well-conditioned in this linearization.

@@ -13,7 +13,7 @@ use nalgebra::{
 use super::linalg::{PoseMatrix, sym6_index};
 use super::passes::DIAG_FLOOR;
 use super::state::Phase;
-use super::{BaParams, BundleAdjuster, CameraId};
+use super::{BaParams, BaStatus, BundleAdjuster, CameraId};
 use crate::geometry::{PinholeCamera, Pose, se3_adjoint};
 
 const RIGS: usize = 4;
@@ -259,4 +259,68 @@ fn product_is_the_dense_matrix_column_by_column() {
     // Symmetric and equal to the dense S to f32 precision.
     assert!((m - m.transpose()).amax() < 1e-6 * sub.amax());
     assert!((m - sub).amax() < 1e-6 * sub.amax());
+}
+
+/// Steps `ba` one unit at a time to the end of its solve, checking at every state that a step of
+/// one unit fewer than `units_before_finish` leaves the solve running; returns the phase the solve
+/// ended from and whether a step of exactly the bound finished it somewhere.
+fn check_bound_to_the_end(ba: &mut Ba) -> (Phase, bool) {
+    let mut tight = false;
+    for state in 0.. {
+        let bound = ba.units_before_finish();
+        assert!(bound >= 1, "state {state}: a running solve needs at least one unit");
+        let quota = u32::try_from(bound).unwrap();
+        let mut probe = ba.clone();
+        let status = probe.step(quota - 1).unwrap();
+        assert_eq!(status, BaStatus::Running, "state {state}, {:?}", ba.state.phase);
+        if let BaStatus::Finished(_) = probe.step(1).unwrap() {
+            tight = true;
+        }
+        let phase = ba.state.phase;
+        if let BaStatus::Finished(_) = ba.step(1).unwrap() {
+            assert_eq!(ba.units_before_finish(), 0, "finished");
+            return (phase, tight);
+        }
+    }
+    unreachable!()
+}
+
+/// `units_before_finish` is a promise the host's parallel back end relies on: from every state
+/// of a solve, a step of one unit fewer than the bound leaves the solve running. The bound is also
+/// reached (a step of exactly the bound finishes the solve somewhere), and solves ending at each
+/// of the decision, the applied step and the reduction are checked.
+#[test]
+fn no_step_short_of_the_bound_finishes_the_solve() {
+    let solve = |params: &BaParams, before_start: fn(&mut Ba)| {
+        let mut ba = Ba::new();
+        build(&mut ba);
+        before_start(&mut ba);
+        assert_eq!(ba.units_before_finish(), 0, "not started");
+        ba.start(&camera(), params).unwrap();
+        ba
+    };
+    let mut ends = std::vec::Vec::new();
+    for n in [1, 3, 10] {
+        let params = BaParams { max_iterations: n, ..BaParams::DEFAULT };
+        ends.push(check_bound_to_the_end(&mut solve(&params, |_| {})));
+    }
+    // A trial rejected on the last iteration ends the solve at the decision: run to the first
+    // trial, make the current cost unbeatable, and allow a single iteration.
+    let mut ba = solve(&BaParams { max_iterations: 1, ..BaParams::DEFAULT }, |_| {});
+    run_until(&mut ba, |p| p == Phase::TrialRigs(0));
+    ba.state.cost = 0.0;
+    ends.push(check_bound_to_the_end(&mut ba));
+    // Every rig and point fixed: nothing to optimize, found at the reduction.
+    let mut ba = Ba::new();
+    let rig = ba.add_rig(&Pose::identity(), true).unwrap();
+    let c = ba.add_camera(rig, &Pose::identity()).unwrap();
+    let p = ba.add_point(&Point3::new(0.1, 0.0, 2.0), true).unwrap();
+    ba.add_observation(p, c, Point2::new(173.0, 119.75), Some(2.0)).unwrap();
+    ba.start(&camera(), &BaParams::DEFAULT).unwrap();
+    ends.push(check_bound_to_the_end(&mut ba));
+    assert!(ends.iter().all(|&(_, tight)| tight), "the bound is reached in every solve: {ends:?}");
+    let ended = |f: fn(Phase) -> bool| ends.iter().any(|&(p, _)| f(p));
+    assert!(ended(|p| matches!(p, Phase::ApplyRigs(_))), "{ends:?}");
+    assert!(ended(|p| p == Phase::Decide), "{ends:?}");
+    assert!(ended(|p| matches!(p, Phase::ReduceRigs(_) | Phase::ReduceCams(_))), "{ends:?}");
 }
