@@ -25,10 +25,8 @@ mod ba_synth;
 
 use std::sync::Mutex;
 
-use ba_synth::{Synth, SynthConfig, segmented};
-use ferroslam_core::optim::{
-    BaParams, BaStatus, BaSummary, BundleAdjuster, LocalBundleAdjuster, SegmentedBundleAdjuster,
-};
+use ba_synth::{LocalBundleAdjuster, SegmentedBundleAdjuster, Synth, SynthConfig, segmented};
+use ferroslam_core::optim::{BaParams, BaStatus, BaSummary, BundleAdjuster};
 
 static LOCAL: Mutex<LocalBundleAdjuster> = Mutex::new(LocalBundleAdjuster::new());
 static SEGMENTED: Mutex<SegmentedBundleAdjuster> = Mutex::new(SegmentedBundleAdjuster::new());

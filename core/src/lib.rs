@@ -44,6 +44,7 @@ pub mod image;
 pub mod map;
 pub mod matching;
 pub mod optim;
+pub mod pose;
 pub mod system;
 pub mod tracking;
 pub mod wire;

@@ -8,11 +8,14 @@ mod ba_synth;
 
 use std::sync::Mutex;
 
-use ba_synth::{SEGMENT_CFG, Synth, SynthConfig, segmented};
+use ba_synth::{
+    LocalBundleAdjuster, SEGMENT_CFG, SegmentedBundleAdjuster, Synth, SynthConfig, segmented,
+};
+use ferroslam_core::config::SensorModel;
 use ferroslam_core::geometry::Pose;
 use ferroslam_core::optim::{
-    BaError, BaParams, BaStatus, BaSummary, BundleAdjuster, CameraId, LocalBundleAdjuster, PointId,
-    SegmentedBundleAdjuster, Termination, VariableKind,
+    BaError, BaParams, BaStatus, BaSummary, BundleAdjuster, CameraId, PointId, Termination,
+    VariableKind,
 };
 use nalgebra::{Point2, Point3};
 
@@ -112,13 +115,14 @@ fn huber_down_weights_outliers() {
     let cfg = SynthConfig { outlier_fraction: 0.05, ..SynthConfig::REALISTIC };
     let synth = Synth::generate(&cfg);
     let mut ba = LOCAL.lock().unwrap();
-    let least_squares = BaParams { huber_delta_px: 1.0e4, ..BaParams::DEFAULT };
+    let sensor = SensorModel { huber_delta_px: 1.0e4, ..SensorModel::DEFAULT };
+    let least_squares = BaParams { sensor, ..BaParams::DEFAULT };
     let mut errors = Vec::new();
     for params in [least_squares, BaParams::DEFAULT] {
         let f = synth.fill_local(&mut ba).unwrap();
         let s = solve(&mut ba, &synth, &params, u32::MAX);
         errors.push(local_errors(&ba, &synth, &f.cams, &f.points));
-        println!("delta {} px: {s:?} -> {:?}", params.huber_delta_px, errors.last());
+        println!("delta {} px: {s:?} -> {:?}", params.sensor.huber_delta_px, errors.last());
     }
     let (ls, huber) = (errors[0], errors[1]);
     assert!(huber.0 < 0.6 * ls.0 && huber.2 < 0.6 * ls.2, "Huber {huber:?} LS {ls:?}");
@@ -330,7 +334,8 @@ fn bad_input_is_refused_with_errors() {
     assert_eq!(ba.add_observation(q, k1, uv, None), Err(full));
     let full = BaError::Full { kind: VariableKind::Point, capacity: 2 };
     assert_eq!(ba.add_point(&Point3::origin(), true), Err(full));
-    let bad_params = BaParams { pixel_sigma_px: -1.0, ..BaParams::DEFAULT };
+    let sensor = SensorModel { pixel_sigma_px: -1.0, ..SensorModel::DEFAULT };
+    let bad_params = BaParams { sensor, ..BaParams::DEFAULT };
     assert_eq!(ba.start(&cam, &bad_params), Err(BaError::InvalidParams));
     ba.start(&cam, &BaParams::DEFAULT).unwrap();
     assert_eq!(ba.add_point(&Point3::origin(), false), Err(BaError::Busy));
@@ -420,6 +425,6 @@ fn sizes_are_as_documented() {
         size_of::<LocalBundleAdjuster>(),
         size_of::<SegmentedBundleAdjuster>()
     );
-    assert_eq!(size_of::<LocalBundleAdjuster>(), 124_320);
-    assert_eq!(size_of::<SegmentedBundleAdjuster>(), 99_496);
+    assert_eq!(size_of::<LocalBundleAdjuster>(), 124_328);
+    assert_eq!(size_of::<SegmentedBundleAdjuster>(), 99_504);
 }

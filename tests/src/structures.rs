@@ -7,29 +7,24 @@
 
 use std::mem::size_of;
 
-use ferroslam_core::backend::{
-    BA_CAMERAS, BA_OBSERVATIONS, BA_POINTS, BA_RIGS, Backend, BoardBundleAdjuster,
-    HOST_BA_OBSERVATIONS, HOST_BA_POINTS, HOST_BA_RIGS, HOST_MAX_KEYFRAMES, HOST_MAX_LANDMARKS,
-    HostBackend,
-};
+use ferroslam_core::backend::{BoardBackend, BoardBundleAdjuster, HostBackend};
 use ferroslam_core::config::capacity::{
     MAX_FEATURES_PER_FRAME, MAX_KEYFRAMES, MAX_LANDMARKS, MAX_OBSERVATIONS_PER_KEYFRAME,
     MAX_TRACKED_LANDMARKS,
 };
 use ferroslam_core::config::{
-    Config, QvgaDepthBuffer, QvgaGrayBuffer, VgaDepthBuffer, VgaGrayBuffer,
+    BOARD_MAP, HOST_MAP, QvgaDepthBuffer, QvgaGrayBuffer, SensorModel, VgaDepthBuffer,
+    VgaGrayBuffer,
 };
 use ferroslam_core::features::{Feature, FeatureVec, QvgaHessianDetector, VgaHessianDetector};
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
 use ferroslam_core::map::{BoardMap, HostMap, KeyFrame, Landmark, Observation};
-use ferroslam_core::system::{HostScaleSlam, QvgaSlam, VgaSlam};
-use ferroslam_core::tracking::sbi::SmallImage;
-use ferroslam_core::tracking::{
-    BoardLocalMap, InlierMask, MotionModel, PoseEstimate, QvgaFrontend, TrackedLandmark,
-    VgaFrontend,
-};
+use ferroslam_core::pose::small_image_rotation::SmallImage;
+use ferroslam_core::pose::{InlierMask, MotionModel, PoseEstimate};
+use ferroslam_core::system::{HostQvga, QvgaSlam, Slam, VgaSlam};
+use ferroslam_core::tracking::{BoardLocalMap, QvgaFrontend, TrackedLandmark, VgaFrontend};
 
 /// One row of the table: a core type, what drives its size, and its `size_of`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -57,7 +52,7 @@ pub fn core_structures() -> Vec<Structure> {
         ),
         row::<VgaGrayBuffer>("config::VgaGrayBuffer", "640 x 480 gray, u8"),
         row::<VgaDepthBuffer>("config::VgaDepthBuffer", "640 x 480 depth, u16"),
-        row::<Config>("config::Config", "profile + tunables"),
+        row::<SensorModel>("config::SensorModel", "pixel and depth noise, Huber, depth range"),
         row::<GrayView<'static>>("image::GrayView", "borrowed: slice + size + stride"),
         row::<DepthView<'static>>("image::DepthView", "borrowed view + depth scale"),
         row::<RgbdFrame<'static>>("frame::RgbdFrame", "timestamp + gray and depth views"),
@@ -77,11 +72,11 @@ pub fn core_structures() -> Vec<Structure> {
             ),
         ),
         row::<InlierMask>(
-            "tracking::InlierMask",
+            "pose::InlierMask",
             format!("{MAX_FEATURES_PER_FRAME} correspondences, one bit each"),
         ),
-        row::<PoseEstimate>("tracking::PoseEstimate", "pose, inlier mask, figures"),
-        row::<MotionModel>("tracking::MotionModel", "last two stamped poses"),
+        row::<PoseEstimate>("pose::PoseEstimate", "pose, inlier mask, figures"),
+        row::<MotionModel>("pose::MotionModel", "last two stamped poses"),
         row::<QvgaFrontend>(
             "tracking::QvgaFrontend",
             format!(
@@ -99,7 +94,7 @@ pub fn core_structures() -> Vec<Structure> {
             format!("`MAX_TRACKED_LANDMARKS` = {MAX_TRACKED_LANDMARKS} tracked landmarks"),
         ),
         row::<SmallImage>(
-            "tracking::sbi::SmallImage",
+            "pose::small_image_rotation::SmallImage",
             "80 x 60 + 40 x 30 blurred thumbnails (rotation recovery); two per front end",
         ),
         row::<Observation>("map::Observation", "landmark id, pixel (1/32 px), depth (1/4 mm)"),
@@ -121,31 +116,37 @@ pub fn core_structures() -> Vec<Structure> {
         row::<BoardBundleAdjuster>(
             "backend::BoardBundleAdjuster",
             format!(
-                "the BA workspace: `BA_RIGS` = {BA_RIGS} rigs, `BA_CAMERAS` = {BA_CAMERAS} \
-                 cameras, `BA_POINTS` = {BA_POINTS} points, `BA_OBSERVATIONS` = \
-                 {BA_OBSERVATIONS} observations (local and global BA share it)"
+                "the BA workspace of `BOARD_MAP`: {} rigs, {} cameras, {} points, {} \
+                 observations (local and global BA share it)",
+                BOARD_MAP.ba_rigs,
+                BOARD_MAP.keyframes,
+                BOARD_MAP.ba_points,
+                BOARD_MAP.ba_observations
             ),
         ),
-        row::<Backend>("backend::Backend", "the BA workspace + the window and segment bookkeeping"),
+        row::<BoardBackend>(
+            "backend::BoardBackend",
+            "the BA workspace + the window and segment bookkeeping",
+        ),
         row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end"),
         row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
         row::<HostMap>(
             "map::HostMap",
             format!(
-                "host only: `HOST_MAX_KEYFRAMES` = {HOST_MAX_KEYFRAMES} keyframes, \
-                 `HOST_MAX_LANDMARKS` = {HOST_MAX_LANDMARKS} landmarks"
+                "host only: `HOST_MAP`: {} keyframes, {} landmarks",
+                HOST_MAP.keyframes, HOST_MAP.landmarks
             ),
         ),
         row::<HostBackend>(
             "backend::HostBackend",
             format!(
-                "host only: a BA workspace of {HOST_BA_RIGS} rigs, {HOST_MAX_KEYFRAMES} cameras, \
-                 {HOST_BA_POINTS} points, {HOST_BA_OBSERVATIONS} observations, and the \
-                 bookkeeping"
+                "host only: a BA workspace of {} rigs, {} cameras, {} points, {} \
+                 observations, and the bookkeeping",
+                HOST_MAP.ba_rigs, HOST_MAP.keyframes, HOST_MAP.ba_points, HOST_MAP.ba_observations
             ),
         ),
-        row::<HostScaleSlam<320, 240>>(
-            "system::HostScaleSlam<320, 240>",
+        row::<Slam<HostQvga>>(
+            "system::Slam<HostQvga>",
             "host only: QVGA front end + `HostMap` + `HostBackend`",
         ),
     ]

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ferroslam_core::config::{Profile, QVGA, VGA};
+use ferroslam_core::config::{QVGA, Resolution, VGA};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_sim::dataset::{Dataset, DatasetOptions, OwnedFrame};
 use ferroslam_tests::shared_dataset;
@@ -18,7 +18,7 @@ fn dir() -> PathBuf {
     dir
 }
 
-fn open(profile: Profile, max_frames: Option<usize>) -> Dataset {
+fn open(profile: Resolution, max_frames: Option<usize>) -> Dataset {
     let opts = DatasetOptions { profile, max_frames, ..DatasetOptions::default() };
     Dataset::open(&dir(), &opts).unwrap()
 }

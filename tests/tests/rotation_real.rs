@@ -8,7 +8,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::tracking::sbi::{RotationParams, SmallImage, estimate_rotation_with};
+use ferroslam_core::pose::small_image_rotation::{
+    RotationParams, SmallImage, estimate_rotation_with,
+};
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_tests::{shared_dataset, workspace_root};
 use nalgebra::UnitQuaternion;

@@ -26,10 +26,10 @@
 //! frames and the same quota per step, the results are the same bits however the caller
 //! schedules the steps in time (deterministic replay gives a fixed quota per frame).
 //!
-//! A solver step reads no map and writes none: [`Backend::advance_solve`] is that part of `step`
-//! alone, and [`Backend::finish_solve`] the write-back when the solve finished. A host runs the
-//! first on its own thread while the front end tracks the next frame (`ferroslam-sim`'s SLAM
-//! replay does, and keeps the bits of the sequential schedule).
+//! A solver step reads no map and writes none: [`Backend::solve_job`] hands it out as a
+//! [`SolveJob`] that borrows only the back end, which can run while the front end tracks the
+//! next frame (`system::Slam::overlap` pairs the two); a solve it finishes is written to the map
+//! by the next [`Backend::step`].
 //!
 //! While a solve runs, the front end keeps tracking and the map keeps growing: the solve works on
 //! a copy of the window's poses and positions, and only keyframes and landmarks still in the map
@@ -105,87 +105,49 @@ use core::fmt;
 
 use heapless::Vec;
 
-use crate::config::{Tunables, capacity};
+use crate::config::{BA_DEPTH_NOISE_COEFF_PER_M, BOARD_MAP, HOST_MAP, SensorModel, capacity};
 use crate::geometry::PinholeCamera;
 use crate::map::{KeyFrameId, LandmarkId, Map};
 use crate::optim::{
     BaError, BaParams, BaStatus, BaSummary, BundleAdjuster, CameraId, PointId, Termination,
 };
 
-/// Rigs of the back end's adjuster: the local window plus fixed neighbours, up to
-/// `LOCAL_WINDOW_MAX + 31`; every rig of a local BA is a keyframe of the map, and a global BA
-/// has one rig per segment, so never more than the map's [`capacity::MAX_KEYFRAMES`].
-pub const BA_RIGS: usize = if capacity::MAX_KEYFRAMES < capacity::LOCAL_WINDOW_MAX + 31 {
-    capacity::MAX_KEYFRAMES
-} else {
-    capacity::LOCAL_WINDOW_MAX + 31
-};
-/// Cameras of the back end's adjuster: every keyframe of the map in a global BA, and at least
-/// the rigs of a local BA.
-pub const BA_CAMERAS: usize =
-    if capacity::MAX_KEYFRAMES > BA_RIGS { capacity::MAX_KEYFRAMES } else { BA_RIGS };
-/// Points of the back end's adjuster.
-pub const BA_POINTS: usize = 1024;
-/// Observations of the back end's adjuster.
-pub const BA_OBSERVATIONS: usize = 6144;
+/// The adjuster the back end uses for local and global BA (they never run at once), sized by
+/// `map`: rigs, a camera for every keyframe of the map, points and observations.
+macro_rules! adjuster_for {
+    ($map:expr) => {
+        BundleAdjuster<
+            { $map.ba_rigs },
+            { $map.keyframes },
+            { $map.ba_points },
+            { $map.ba_observations },
+        >
+    };
+}
 
-/// The depth noise bundle adjustment weighs a keyframe's depth observation with, in 1/m:
-/// 6e-4 (`sigma_z = k z^2`: 2.4 mm at 2 m), whatever the sensor
-/// ([`Tunables::ba_depth_noise_coeff_per_m`]), not the tracker's 3e-3.
-///
-/// Measured, not derived. On 7-Scenes (QVGA, depth at level 1, `cargo xtask spread`: 4
-/// RANSAC seeds x start frames 0, 300, 600) SLAM's ATE was 0.0382 m on average, better than
-/// odometry in 7 of 12 runs, with the tracker's 3e-3; 0.0336 m and 12 of 12 with 6e-4; 0.0340
-/// m and 12 of 12 with 1e-3. On the demo's exact synthetic depth, whose tracker is told 2e-4,
-/// SLAM over 16 start frames averaged 3.6 mm with 2e-4 and 3.1 mm with 6e-4. Why the two
-/// differ: the tracker compares one frame's depth with a landmark's running estimate, and
-/// its coefficient carries a margin for depth read a fraction of a pixel off the tracked point;
-/// bundle adjustment checks each keyframe's reading against the landmark's other keyframes,
-/// so it can trust depth more on a noisy sensor. On exact depth the reading is still
-/// interpolated on the coarse depth grid, and trusting it as exact costs accuracy.
-///
-/// Measured again at 8c353e4 with 2e-3 (a temporary build; `cargo xtask spread`, 12 start
-/// frames of 7-Scenes; the demo's default run by `ferroslam-sim demo`): at the board's quota
-/// ([`crate::system::DEFAULT_BACKEND_QUOTA`]) 7-Scenes SLAM 0.0343 m (better than odometry in 11
-/// of 12 runs) against 0.0331 m (12 of 12), and the demo 4.28 mm against 2.85 mm. With a quota of
-/// 100,000 units (`--backend-quota 100000`: each local BA solved within its frame), 7-Scenes
-/// 0.0360 m against 0.0357 m, but the demo 2.78 mm (online poses 2.80 mm) against 3.88 mm (4.01
-/// mm): on the demo, a BA run to convergence with 6e-4 trusts the coarse depth too much. The
-/// board runs each BA over many frames, where 6e-4 is the better weight on both.
-pub const BA_DEPTH_NOISE_COEFF_PER_M: f32 = 6.0e-4;
+/// A back end sized for `map` (a [`MapCapacity`](crate::config::MapCapacity)).
+macro_rules! backend_for {
+    ($map:expr) => {
+        Backend<
+            { $map.keyframes },
+            { $map.landmarks },
+            { $map.landmark_words },
+            { $map.ba_rigs },
+            { $map.ba_points },
+            { $map.ba_observations },
+        >
+    };
+}
 
-/// The one adjuster the back end uses for local and global BA (they never run at once).
-pub type BoardBundleAdjuster = BundleAdjuster<BA_RIGS, BA_CAMERAS, BA_POINTS, BA_OBSERVATIONS>;
+/// The adjuster of the board's back end.
+pub type BoardBundleAdjuster = adjuster_for!(BOARD_MAP);
 
-/// The back end sized for the board's map ([`crate::map::BoardMap`]) with the adjuster
-/// [`BoardBundleAdjuster`]: what the firmware runs.
-pub type BoardBackend = Backend;
+/// The back end sized for the board's map ([`crate::map::BoardMap`], [`BOARD_MAP`]): what the
+/// firmware runs.
+pub type BoardBackend = backend_for!(BOARD_MAP);
 
-/// Keyframes of the host-scale map ([`crate::map::HostMap`]): enough for the paper's local
-/// window to average 50-65 keyframes in a map of over 120 (issue 4), which the board's 32-keyframe
-/// map cannot hold. Host only: the map is about 1 MB and its back end ([`HostBackend`]) about
-/// 380 KB.
-pub const HOST_MAX_KEYFRAMES: usize = 256;
-/// Landmarks of the host-scale map.
-pub const HOST_MAX_LANDMARKS: usize = 16_384;
-/// Rigs of the host-scale back end's adjuster: a full window of
-/// [`capacity::LOCAL_WINDOW_MAX`] keyframes plus 31 fixed neighbours.
-pub const HOST_BA_RIGS: usize = capacity::LOCAL_WINDOW_MAX + 31;
-/// Points of the host-scale back end's adjuster.
-pub const HOST_BA_POINTS: usize = 4096;
-/// Observations of the host-scale back end's adjuster: every observation of every rig's
-/// keyframe ([`capacity::MAX_OBSERVATIONS_PER_KEYFRAME`] each).
-pub const HOST_BA_OBSERVATIONS: usize = HOST_BA_RIGS * capacity::MAX_OBSERVATIONS_PER_KEYFRAME;
-
-/// The back end sized for the host-scale map ([`crate::map::HostMap`]).
-pub type HostBackend = Backend<
-    HOST_MAX_KEYFRAMES,
-    HOST_MAX_LANDMARKS,
-    { HOST_MAX_LANDMARKS / 32 },
-    HOST_BA_RIGS,
-    HOST_BA_POINTS,
-    HOST_BA_OBSERVATIONS,
->;
+/// The back end sized for the host-scale map ([`crate::map::HostMap`], [`HOST_MAP`]).
+pub type HostBackend = backend_for!(HOST_MAP);
 
 /// Tunables of the back end.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -216,15 +178,18 @@ pub struct BackendParams {
 
 impl BackendParams {
     /// The solver parameters both BAs start from: at most 5 iterations, a keyframe's depth
-    /// observation weighed with [`BA_DEPTH_NOISE_COEFF_PER_M`].
+    /// weighed with [`BA_DEPTH_NOISE_COEFF_PER_M`].
     const SOLVER: BaParams = BaParams {
         max_iterations: 5,
-        depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
+        sensor: SensorModel {
+            depth_noise_coeff_per_m: BA_DEPTH_NOISE_COEFF_PER_M,
+            ..SensorModel::DEFAULT
+        },
         ..BaParams::DEFAULT
     };
 
     /// The defaults, documented per field; both solvers run at most 5 iterations and weigh a
-    /// keyframe's depth observation with [`BA_DEPTH_NOISE_COEFF_PER_M`].
+    /// keyframe's depth with [`BA_DEPTH_NOISE_COEFF_PER_M`].
     pub const DEFAULT: Self = Self {
         local: Self::SOLVER,
         global: Self::SOLVER,
@@ -236,15 +201,14 @@ impl BackendParams {
         global_enabled: true,
     };
 
-    /// These parameters with the bundle-adjustment depth noise of `tunables`
-    /// ([`Tunables::ba_depth_noise_coeff_per_m`]) in both solvers.
-    pub const fn with_tunables(self, tunables: &Tunables) -> Self {
-        let k = tunables.ba_depth_noise_coeff_per_m;
-        Self {
-            local: BaParams { depth_noise_coeff_per_m: k, ..self.local },
-            global: BaParams { depth_noise_coeff_per_m: k, ..self.global },
-            ..self
+    /// These parameters with the sensor's measurement model in both solvers, each keeping its
+    /// own depth noise (bundle adjustment's, [`BA_DEPTH_NOISE_COEFF_PER_M`] by default).
+    pub const fn with_sensor(self, sensor: SensorModel) -> Self {
+        const fn with(ba: BaParams, sensor: SensorModel) -> BaParams {
+            let depth_noise_coeff_per_m = ba.sensor.depth_noise_coeff_per_m;
+            BaParams { sensor: SensorModel { depth_noise_coeff_per_m, ..sensor }, ..ba }
         }
+        Self { local: with(self.local, sensor), global: with(self.global, sensor), ..self }
     }
 
     /// Whether every value is in range.
@@ -348,12 +312,12 @@ enum Job {
 /// ([`BoardBackend`]); [`HostBackend`] is the host-scale one.
 #[derive(Debug)]
 pub struct Backend<
-    const K: usize = { capacity::MAX_KEYFRAMES },
-    const L: usize = { capacity::MAX_LANDMARKS },
-    const LW: usize = { capacity::MAX_LANDMARKS / 32 },
-    const R: usize = BA_RIGS,
-    const P: usize = BA_POINTS,
-    const O: usize = BA_OBSERVATIONS,
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
 > {
     params: BackendParams,
     ba: BundleAdjuster<R, K, P, O>,
@@ -496,26 +460,18 @@ impl<
         }
     }
 
-    /// Whether a solve is under way, so that the next [`Self::step`] is an
-    /// [`Self::advance_solve`] (which never touches the map) followed, when the solve finishes,
-    /// by [`Self::finish_solve`].
-    pub fn is_solving(&self) -> bool {
-        matches!(self.job, Job::Solving(_))
+    /// The solve under way as a [`SolveJob`], which borrows only this back end and never the
+    /// map; `None` when no solve is under way (the next [`Self::step`] builds a problem or writes
+    /// a result, and reads the map).
+    pub fn solve_job(&mut self) -> Option<SolveJob<'_>> {
+        matches!(self.job, Job::Solving(_)).then_some(SolveJob { solve: self })
     }
 
     /// The part of [`Self::step`] that reads no map and writes none: advances the solve under way
-    /// by at most about `work_quota` units. It needs only the back end, so a host can run it on
-    /// another thread while the front end tracks the next frame. Returns whether the solve
-    /// finished; its result then waits for [`Self::finish_solve`] (which the next `step` also
-    /// does), and the back end stays busy until then. Does nothing and returns `false` when no
-    /// solve is under way ([`Self::is_solving`]).
-    ///
-    /// When solving, `step(map, cam, q)` is exactly `advance_solve(q)` followed, if it returned
-    /// `true`, by `finish_solve(map)`.
-    ///
-    /// # Errors
-    /// As [`Self::step`].
-    pub fn advance_solve(&mut self, work_quota: u32) -> Result<bool, BackendError> {
+    /// by at most about `work_quota` units and returns whether it finished; its result then waits
+    /// for [`Self::finish_solve`], which the next `step` does. When solving, `step(map, cam, q)` is
+    /// exactly `advance_solve(q)` followed, if it returned `true`, by `finish_solve(map)`.
+    fn advance_solve(&mut self, work_quota: u32) -> Result<bool, BackendError> {
         if !self.params.is_valid() {
             return Err(BackendError::InvalidParams);
         }
@@ -533,7 +489,7 @@ impl<
 
     /// Writes the result of a solve that [`Self::advance_solve`] finished to `map` (unless the
     /// solve diverged) and makes the back end idle; `None` when no finished solve waits.
-    pub fn finish_solve(&mut self, map: &mut Map<K, L>) -> Option<BackendStatus> {
+    fn finish_solve(&mut self, map: &mut Map<K, L>) -> Option<BackendStatus> {
         let Job::Finished(kind, summary) = self.job else {
             return None;
         };
@@ -598,6 +554,63 @@ impl<
             self.stats.reference_landmarks_made =
                 self.stats.reference_landmarks_made.saturating_add(1);
         }
+    }
+}
+
+/// The solving half of a back end, which a [`SolveJob`] drives without naming its capacities.
+trait Solve {
+    fn advance(&mut self, work_units: u32) -> Result<bool, BackendError>;
+    fn units_before_finish(&self) -> u64;
+}
+
+impl<
+    const K: usize,
+    const L: usize,
+    const LW: usize,
+    const R: usize,
+    const P: usize,
+    const O: usize,
+> Solve for Backend<K, L, LW, R, P, O>
+{
+    fn advance(&mut self, work_units: u32) -> Result<bool, BackendError> {
+        self.advance_solve(work_units)
+    }
+
+    fn units_before_finish(&self) -> u64 {
+        self.ba.units_before_finish()
+    }
+}
+
+/// The solve under way, as a job that borrows only the back end ([`Backend::solve_job`]): a
+/// solve step reads no map and writes none, so the job can run while the front end tracks the
+/// next frame, on another thread on a host or as a lower-priority task between frame interrupts
+/// on a board. A solve the job finishes waits for the back end's next [`Backend::step`] to be
+/// written to the map; a job advanced by fewer units than [`Self::units_before_finish`] cannot
+/// finish, and then gives the same bits as that many units of `step` run in turn.
+pub struct SolveJob<'a> {
+    solve: &'a mut (dyn Solve + Send),
+}
+
+impl SolveJob<'_> {
+    /// Advances the solve by at most about `work_units` (at least 1) and returns whether it
+    /// finished.
+    ///
+    /// # Errors
+    /// As [`Backend::step`]; the job is dropped then.
+    pub fn advance(&mut self, work_units: u32) -> Result<bool, BackendError> {
+        self.solve.advance(work_units)
+    }
+
+    /// At least how many work units the solve still takes before it can finish (see
+    /// [`BundleAdjuster::units_before_finish`]). Cost: one pass over the problem's points.
+    pub fn units_before_finish(&self) -> u64 {
+        self.solve.units_before_finish()
+    }
+}
+
+impl fmt::Debug for SolveJob<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("SolveJob").finish_non_exhaustive()
     }
 }
 

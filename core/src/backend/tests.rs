@@ -17,9 +17,9 @@ fn camera() -> PinholeCamera {
 }
 
 #[test]
-fn with_no_solve_under_way_the_split_does_nothing() {
+fn with_no_solve_under_way_there_is_no_solve_job() {
     let (mut backend, mut map) = (BoardBackend::new(), BoardMap::new());
-    assert!(!backend.is_solving());
+    assert!(backend.solve_job().is_none());
     assert_eq!(backend.advance_solve(5_000), Ok(false));
     assert_eq!(backend.finish_solve(&mut map), None);
     assert_eq!(backend.stats().steps, 0, "nothing was charged as a step");
@@ -28,21 +28,24 @@ fn with_no_solve_under_way_the_split_does_nothing() {
     assert!(!backend.is_busy());
 }
 
-/// The bundle-adjustment depth noise reaches both solvers, the tracker's does not; the default
-/// tunables are the default weighting.
+/// The sensor model reaches both solvers but for its depth noise: bundle adjustment keeps its
+/// own; the default model gives the default weighting.
 #[test]
-fn tunables_set_the_depth_noise_of_both_solvers() {
-    let default = crate::config::Tunables::default();
-    assert_eq!(BackendParams::DEFAULT.with_tunables(&default), BackendParams::DEFAULT);
-    assert_eq!(default.ba_depth_noise_coeff_per_m, 6.0e-4);
-    let quiet = crate::config::Tunables {
+fn the_sensor_model_reaches_both_solvers_but_for_depth_noise() {
+    let default = crate::config::SensorModel::DEFAULT;
+    assert_eq!(BackendParams::DEFAULT.with_sensor(default), BackendParams::DEFAULT);
+    assert_eq!(BackendParams::DEFAULT.local.sensor.depth_noise_coeff_per_m, 6.0e-4);
+    let sensor = crate::config::SensorModel {
         depth_noise_coeff_per_m: 2.0e-4,
-        ba_depth_noise_coeff_per_m: 1.0e-3,
+        pixel_sigma_px: 0.5,
+        depth_max_m: 3.0,
         ..default
     };
-    let p = BackendParams::DEFAULT.with_tunables(&quiet);
-    assert_eq!(p.local.depth_noise_coeff_per_m, 1.0e-3);
-    assert_eq!(p.global.depth_noise_coeff_per_m, 1.0e-3);
+    let p = BackendParams::DEFAULT.with_sensor(sensor);
+    for ba in [p.local, p.global] {
+        assert_eq!(ba.sensor.depth_noise_coeff_per_m, 6.0e-4);
+        assert_eq!((ba.sensor.pixel_sigma_px, ba.sensor.depth_max_m), (0.5, 3.0));
+    }
     assert!(p.is_valid());
 }
 
@@ -158,7 +161,8 @@ fn fill_a_65_keyframe_window() {
 
     use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 
-    use super::{BaKind, HOST_BA_RIGS, HostBackend};
+    use super::{BaKind, HostBackend};
+    use crate::config::HOST_MAP;
     use crate::config::capacity::LOCAL_WINDOW_MAX;
     use crate::geometry::Pose;
     use crate::map::{HostMap, KeyFrameId, Observation};
@@ -204,7 +208,7 @@ fn fill_a_65_keyframe_window() {
     backend.keyframe_added(kfs[newest as usize], newest);
     assert_eq!(backend.step(&mut map, &cam, 5_000), Ok(BackendStatus::Built(BaKind::Local)));
     assert_eq!(backend.stats().window_sizes[LOCAL_WINDOW_MAX], 1, "a window of 65 keyframes");
-    assert_eq!(backend.cameras.len(), HOST_BA_RIGS, "65 in the window, 31 fixed neighbours");
+    assert_eq!(backend.cameras.len(), HOST_MAP.ba_rigs, "65 in the window, 31 fixed neighbours");
     assert_eq!(backend.points.len(), points.len());
     let mut finished = false;
     for _ in 0..10_000 {

@@ -8,7 +8,7 @@ use super::filter::{
     laplacian_positive_at, response_at, response_row,
 };
 use super::refine::{Cube, is_maximum, plane_below, refine, sigma_of_size};
-use super::ring::IntegralRing;
+use super::rolling_integral::IntegralRing;
 use super::{Feature, FeatureError, FeatureVec, HessianParams};
 use crate::image::GrayView;
 

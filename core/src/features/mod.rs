@@ -68,7 +68,7 @@ mod descriptor;
 mod filter;
 mod hessian;
 mod refine;
-mod ring;
+mod rolling_integral;
 
 #[cfg(test)]
 mod tests;

@@ -39,7 +39,7 @@ use nalgebra::Point3;
 pub use arena::{Arena, Handle};
 pub use observation::Observation;
 
-use crate::config::capacity;
+use crate::config::{BOARD_MAP, HOST_MAP, capacity};
 use crate::features::Descriptor;
 use crate::geometry::Pose;
 
@@ -115,13 +115,12 @@ impl fmt::Display for MapError {
 
 impl core::error::Error for MapError {}
 
-/// The map at the reference board's capacities.
-pub type BoardMap = Map<{ capacity::MAX_KEYFRAMES }, { capacity::MAX_LANDMARKS }>;
+/// The map at the reference board's capacities ([`BOARD_MAP`]).
+pub type BoardMap = Map<{ BOARD_MAP.keyframes }, { BOARD_MAP.landmarks }>;
 
-/// The host-scale map: room for the paper's local window in a map of over 120 keyframes (see
-/// [`crate::backend::HostBackend`]); about 1 MB, for the host simulator, not the board.
-pub type HostMap =
-    Map<{ crate::backend::HOST_MAX_KEYFRAMES }, { crate::backend::HOST_MAX_LANDMARKS }>;
+/// The host-scale map ([`HOST_MAP`]): room for the paper's local window in a map of over 120
+/// keyframes; about 1 MB, for the host simulator, not the board.
+pub type HostMap = Map<{ HOST_MAP.keyframes }, { HOST_MAP.landmarks }>;
 
 /// A map of at most `K` keyframes and `L` landmarks (both at most 65,536).
 #[derive(Debug, Clone)]

@@ -50,24 +50,24 @@
 
 mod affine;
 mod patch;
+mod patch_tracker;
 mod refine;
 mod region;
 mod roi;
 mod search;
 #[cfg(test)]
 mod tests;
-mod track;
 
 use core::fmt;
 
 pub use affine::{AFFINE_BANK, AFFINE_BANK_IDENTITY, AFFINE_BANK_LEN, IDENTITY, Mat2};
 pub use patch::{MAX_HALF_SIZE, sample_bilinear};
-pub use region::{RegionMatch, match_region};
-pub use roi::{MAX_ROI_HALF_SIZE, Roi, RoiParams, select_rois};
-pub use track::{
+pub use patch_tracker::{
     MAX_TRACK_COARSE_STEPS, MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS, PatchTrack, TrackParams,
     TrackScratch, track_patch, track_patch_with,
 };
+pub use region::{RegionMatch, match_region};
+pub use roi::{MAX_ROI_HALF_SIZE, Roi, RoiParams, select_rois};
 
 /// Why a region could not be matched.
 #[derive(Debug, Clone, Copy, PartialEq)]

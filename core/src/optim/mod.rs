@@ -19,11 +19,12 @@
 //!
 //! # Cost
 //!
-//! Tracking's model ([`crate::tracking`]): per observation the whitened reprojection residual
+//! The pose estimator's model ([`crate::pose`], the one [`SensorModel`](crate::config::SensorModel)
+//! both take): per observation the whitened reprojection residual
 //! `(project(t_cw p_w) - uv) / pixel_sigma_px` and, with depth, the whitened inverse-depth
 //! residual `(1/z_pred - 1/z_meas) / depth_noise_coeff_per_m` (Kinect-class depth has a
 //! constant inverse-depth sigma), each block under its own Huber loss with threshold
-//! `huber_delta_px / pixel_sigma_px`. [`BaParams::from_pose_params`] copies tracking's values.
+//! `huber_delta_px / pixel_sigma_px`.
 //! Poses are updated on the left, `T_s <- exp(xi) T_s`, points additively.
 //!
 //! # Algorithm
@@ -99,16 +100,9 @@
 //! rounded to 1/32 pixel, inverse depth to `2^-13` per metre, the camera as `u16`; the point is
 //! implied by the grouping), a point 15 (position, fixed flag, end of its observations), a rig
 //! 286 (pose, trial pose, its 6x6 preconditioner block, damping, five PCG 6-vectors), a camera
-//! 258 (offset, two cached `t_cw`, its 6x6 block, two 6-vectors). `size_of` on the 64-bit host,
-//! checked by a test:
-//!
-//! | type | capacities (rigs, cameras, points, observations) | bytes |
-//! | --- | --- | --- |
-//! | [`LocalBundleAdjuster`] | 65, 65, 1536, 8192 | 124,320 |
-//! | [`SegmentedBundleAdjuster`] | 8, 32, 1536, 8192 (`MAX_SEGMENTS`, `MAX_KEYFRAMES`) | 99,496 |
-//!
-//! Local and segmented BA never run at the same time, so one adjuster can serve both when RAM
-//! is tighter than code clarity: the back end does this (`backend::BoardBundleAdjuster`).
+//! 258 (offset, two cached `t_cw`, its 6x6 block, two 6-vectors). The back end's one adjuster
+//! (`backend::BoardBundleAdjuster`: the capacities of `config::BOARD_MAP`) serves local and
+//! segmented BA, which never run at the same time; its size is in `memory-budget.md`.
 //!
 //! # Determinism
 //!
@@ -140,39 +134,24 @@
 //! is about 4.5 M. Segmented (12 free segments): 4 LM iterations, 18 PCG iterations, 393,314
 //! units, 157.6 M instructions in 79 steps (max 3.40 M).
 
-mod items;
 mod linalg;
 mod model;
+mod observation_passes;
 mod params;
-mod passes;
+mod pose_items;
 mod problem;
 mod solver;
-mod state;
+mod solver_state;
 
 #[cfg(test)]
 mod tests;
 
 use core::fmt;
 
-use crate::config::capacity::{LOCAL_WINDOW_MAX, MAX_KEYFRAMES, MAX_SEGMENTS};
-
 pub use model::{MAX_OBSERVATION_PX, MIN_OBSERVATION_DEPTH_M, MIN_OBSERVATION_PX};
 pub use params::BaParams;
 pub use problem::ObservationResidual;
 pub use solver::BundleAdjuster;
-
-/// Points of the back end's bundle adjusters (QVGA profile).
-pub const BA_MAX_POINTS: usize = 1536;
-/// Observations of the back end's bundle adjusters (QVGA profile).
-pub const BA_MAX_OBSERVATIONS: usize = 8192;
-
-/// Local BA over the capped window: one rig per keyframe.
-pub type LocalBundleAdjuster =
-    BundleAdjuster<LOCAL_WINDOW_MAX, LOCAL_WINDOW_MAX, BA_MAX_POINTS, BA_MAX_OBSERVATIONS>;
-
-/// Segmented global BA: one rig per segment, every keyframe of the map a camera.
-pub type SegmentedBundleAdjuster =
-    BundleAdjuster<MAX_SEGMENTS, MAX_KEYFRAMES, BA_MAX_POINTS, BA_MAX_OBSERVATIONS>;
 
 /// A rig (pose variable) of the problem held; valid until [`BundleAdjuster::clear`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

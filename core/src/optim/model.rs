@@ -154,9 +154,9 @@ impl Model {
             fy: camera.fy(),
             cx: camera.cx(),
             cy: camera.cy(),
-            inv_sigma_px: 1.0 / params.pixel_sigma_px,
-            inv_depth_coeff: 1.0 / params.depth_noise_coeff_per_m,
-            huber_delta: params.huber_delta_px / params.pixel_sigma_px,
+            inv_sigma_px: 1.0 / params.sensor.pixel_sigma_px,
+            inv_depth_coeff: 1.0 / params.sensor.depth_noise_coeff_per_m,
+            huber_delta: params.sensor.huber_delta_px / params.sensor.pixel_sigma_px,
         }
     }
 
@@ -220,6 +220,7 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::SensorModel;
     use crate::geometry::{Pose, se3_exp};
     use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
@@ -228,7 +229,8 @@ mod tests {
     }
 
     fn model() -> Model {
-        let params = BaParams { depth_noise_coeff_per_m: 0.01, ..BaParams::DEFAULT };
+        let sensor = SensorModel { depth_noise_coeff_per_m: 0.01, ..SensorModel::DEFAULT };
+        let params = BaParams { sensor, ..BaParams::DEFAULT };
         Model::new(&camera(), &params)
     }
 

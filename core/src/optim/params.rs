@@ -1,22 +1,15 @@
 //! Tunables of bundle adjustment.
 
-use crate::tracking::PoseParams;
+use crate::config::SensorModel;
 
 /// Tunables of [`BundleAdjuster`](super::BundleAdjuster), with their units.
-///
-/// The first three are the measurement model and should equal tracking's
-/// ([`Self::from_pose_params`]) so that the front end and the back end weigh the same data alike.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BaParams {
-    /// Standard deviation of an observed pixel position, pixels. Residuals are divided by it.
-    pub pixel_sigma_px: f32,
-    /// Depth noise coefficient `c` of `sigma_z = c z^2`, per metre: the standard deviation of the
-    /// inverse-depth residual, in 1/m (see [`PoseParams::depth_noise_coeff_per_m`]).
-    pub depth_noise_coeff_per_m: f32,
-    /// Huber threshold on the reprojection error, pixels; the depth term uses the same threshold
-    /// in standard deviations (`huber_delta_px / pixel_sigma_px`), as tracking does.
-    pub huber_delta_px: f32,
+    /// The sensor's measurement model, the one tracking takes: the pixel sigma, the Huber
+    /// threshold and the depth noise whiten the residuals (the back end gives its own depth
+    /// noise: `BackendParams::with_sensor`).
+    pub sensor: SensorModel,
     /// Levenberg-Marquardt solves at most (accepted or rejected).
     pub max_iterations: u32,
     /// Conjugate-gradient iterations per solve at most.
@@ -40,12 +33,10 @@ pub struct BaParams {
 }
 
 impl BaParams {
-    /// The defaults, usable in `const` contexts (what [`Default`] gives). The model fields are
-    /// [`PoseParams::DEFAULT`]'s.
+    /// The defaults, usable in `const` contexts (what [`Default`] gives), with the default
+    /// [`SensorModel`].
     pub const DEFAULT: Self = Self {
-        pixel_sigma_px: PoseParams::DEFAULT.pixel_sigma_px,
-        depth_noise_coeff_per_m: PoseParams::DEFAULT.depth_noise_coeff_per_m,
-        huber_delta_px: PoseParams::DEFAULT.huber_delta_px,
+        sensor: SensorModel::DEFAULT,
         max_iterations: 10,
         pcg_max_iterations: 25,
         pcg_relative_tolerance: 5.0e-2,
@@ -56,24 +47,12 @@ impl BaParams {
         lambda_init: 1.0e-4,
     };
 
-    /// [`Self::DEFAULT`] with tracking's measurement model (pixel sigma, depth noise, Huber).
-    pub const fn from_pose_params(pose: &PoseParams) -> Self {
-        Self {
-            pixel_sigma_px: pose.pixel_sigma_px,
-            depth_noise_coeff_per_m: pose.depth_noise_coeff_per_m,
-            huber_delta_px: pose.huber_delta_px,
-            ..Self::DEFAULT
-        }
-    }
-
     /// Whether every value is in range: sigmas, thresholds and tolerances finite and positive
     /// (the relative PCG tolerance below 1), at least one iteration of each kind, the initial
     /// damping finite and positive.
     pub fn is_valid(&self) -> bool {
         let pos = |x: f32| x.is_finite() && x > 0.0;
-        pos(self.pixel_sigma_px)
-            && pos(self.depth_noise_coeff_per_m)
-            && pos(self.huber_delta_px)
+        self.sensor.is_valid()
             && pos(self.pcg_relative_tolerance)
             && self.pcg_relative_tolerance < 1.0
             && pos(self.function_tolerance)
@@ -97,14 +76,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn defaults_are_valid_and_follow_tracking() {
+    fn defaults_are_valid_and_share_tracking_s_sensor_model() {
         assert!(BaParams::DEFAULT.is_valid());
-        let pose = PoseParams { pixel_sigma_px: 0.7, ..PoseParams::DEFAULT };
-        let p = BaParams::from_pose_params(&pose);
-        assert_eq!(p.pixel_sigma_px, 0.7);
-        assert_eq!(p.huber_delta_px, pose.huber_delta_px);
+        assert_eq!(BaParams::DEFAULT.sensor, crate::pose::PoseParams::DEFAULT.sensor);
+        let blind = SensorModel { pixel_sigma_px: f32::NAN, ..SensorModel::DEFAULT };
         for bad in [
-            BaParams { pixel_sigma_px: f32::NAN, ..BaParams::DEFAULT },
+            BaParams { sensor: blind, ..BaParams::DEFAULT },
             BaParams { pcg_relative_tolerance: 1.0, ..BaParams::DEFAULT },
             BaParams { max_iterations: 0, ..BaParams::DEFAULT },
             BaParams { lambda_init: 0.0, ..BaParams::DEFAULT },

@@ -6,7 +6,7 @@ use nalgebra::{Point2, Point3};
 use super::linalg::{PoseMatrix, StoredPose, Vec3};
 use super::model::StoredObservation;
 use super::solver::BundleAdjuster;
-use super::state::Phase;
+use super::solver_state::Phase;
 use super::{BaError, CameraId, ObservationId, PointId, RigId, VariableKind};
 use crate::geometry::Pose;
 

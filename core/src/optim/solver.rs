@@ -20,9 +20,11 @@
 //! [`State`], so cutting the sequence anywhere gives the same arithmetic in the same order.
 
 use super::model::Model;
-use super::passes::{PassKind, PointCursor};
+use super::observation_passes::{PassKind, PointCursor};
 use super::problem::Problem;
-use super::state::{Budget, LAMBDA_MAX, LAMBDA_MIN, Pcg, Phase, PointAcc, State, Sum, Workspace};
+use super::solver_state::{
+    Budget, LAMBDA_MAX, LAMBDA_MIN, Pcg, Phase, PointAcc, State, Sum, Workspace,
+};
 use super::{BaError, BaParams, BaStatus, BaSummary, Termination};
 use crate::geometry::PinholeCamera;
 

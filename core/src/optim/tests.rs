@@ -11,8 +11,8 @@ use nalgebra::{
 };
 
 use super::linalg::{PoseMatrix, sym6_index};
-use super::passes::DIAG_FLOOR;
-use super::state::Phase;
+use super::observation_passes::DIAG_FLOOR;
+use super::solver_state::Phase;
 use super::{BaParams, BaStatus, BundleAdjuster, CameraId};
 use crate::geometry::{PinholeCamera, Pose, se3_adjoint};
 

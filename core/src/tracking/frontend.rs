@@ -24,7 +24,7 @@
 //!    `frontend_match.rs`, which gives the measurements behind the order).
 //! 4. Final stage: from the start pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
 //!    are matched with a small search and sub-pixel refinement;
-//!    [`track_pose`](super::track_pose) estimates `t_cw` from the matches (pixel and, where the
+//!    [`track_pose`](crate::pose::track_pose) estimates `t_cw` from the matches (pixel and, where the
 //!    frame has it, depth).
 //! 5. Bookkeeping: each landmark counts the frames it was visible and found (a pose inlier);
 //!    landmarks found too rarely or not for long are dropped from the local map (not from the
@@ -75,16 +75,16 @@ use core::fmt;
 use heapless::Vec;
 
 use super::local_map::BoardLocalMap;
-use super::sbi::SmallImage;
 use super::select::Candidate;
-use super::{Correspondence, MAX_CORRESPONDENCES, MotionModel, TrackingRng};
 use crate::config::capacity;
 use crate::features::{FeatureVec, HessianDetector};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::{KeyFrameId, Map};
+use crate::pose::small_image_rotation::SmallImage;
+use crate::pose::{Correspondence, MAX_CORRESPONDENCES, MotionModel, TrackingRng};
 
-pub use super::frontend_params::FrontendParams;
+pub use super::params::FrontendParams;
 
 /// The front end at the reference board's QVGA profile (320 x 240).
 pub type QvgaFrontend = Frontend<320, 240>;
@@ -636,5 +636,5 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
 }
 
 #[cfg(test)]
-#[path = "frontend_tests.rs"]
+#[path = "tests.rs"]
 mod tests;

@@ -1,98 +1,209 @@
-//! Tunables of pose estimation.
+//! [`FrontendParams`]: every tunable of the front end, with `const` defaults.
 
-/// Tunables of [`refine_pose`](super::refine_pose), [`ransac_pose`](super::ransac_pose) and
-/// [`track_pose`](super::track_pose), with their units.
+use crate::config::SensorModel;
+use crate::features::HessianParams;
+use crate::matching::{MatchParams, TrackParams};
+use crate::pose::PoseParams;
+
+/// Tunables of [`Frontend`](super::frontend::Frontend). Distances in pixels are at the processing
+/// resolution (QVGA on the board).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PoseParams {
-    /// Standard deviation of a feature's pixel position, pixels. Residuals are divided by it.
-    pub pixel_sigma_px: f32,
-    /// Depth noise coefficient `c` of `sigma_z = c z^2`, per metre: the standard deviation of the
-    /// inverse-depth residual, in 1/m. Kinect v1 measures about 1.4e-3; the default 3e-3 leaves
-    /// room for the map point's own error.
-    pub depth_noise_coeff_per_m: f32,
-    /// Huber threshold on the reprojection error, pixels. The depth term uses the same threshold
-    /// in standard deviations (`huber_delta_px / pixel_sigma_px`).
-    pub huber_delta_px: f32,
-    /// Inlier gate on the whitened squared reprojection error (chi-square, 2 DOF): 5.991 is the
-    /// 95% quantile.
-    pub chi2_reprojection: f32,
-    /// Inlier gate on the whitened squared inverse-depth error (chi-square, 1 DOF): 3.841 is the
-    /// 95% quantile. An inlier passes both gates (the depth one only when depth is known).
-    pub chi2_depth: f32,
-    /// Levenberg-Marquardt solves per refinement round.
-    pub max_iterations: u32,
-    /// Refinement rounds: after each, inliers are re-classified by the chi-square gates and the
-    /// next round optimizes over the inliers only (outliers get weight zero).
-    pub refine_rounds: u32,
-    /// Convergence: a step whose translation is below this (metres) and rotation below
-    /// [`Self::min_step_rotation_rad`] ends the round.
-    pub min_step_translation_m: f32,
-    /// Convergence: rotation part of a step, radians.
-    pub min_step_rotation_rad: f32,
-    /// RANSAC hypotheses at most.
-    pub ransac_iterations: u32,
-    /// RANSAC stops early once an all-inlier minimal set has been drawn with this probability,
-    /// given the best inlier ratio so far (in `(0, 1)`).
-    pub ransac_confidence: f32,
-    /// Fewest inliers of a valid pose.
-    pub min_inliers: u32,
-    /// [`track_pose`](super::track_pose) falls back to RANSAC when refining the prediction keeps
-    /// fewer than this fraction of the correspondences as inliers.
-    pub min_inlier_ratio: f32,
-    /// A valid pose has every translation standard deviation (from the inverse Hessian over the
-    /// inliers) at most this, metres.
-    pub max_sigma_translation_m: f32,
-    /// A valid pose has every rotation standard deviation at most this, radians.
-    pub max_sigma_rotation_rad: f32,
+pub struct FrontendParams {
+    /// Feature detection for new keyframes. Default: [`HessianParams::default`] with the
+    /// threshold lowered from 100 to 30 (at 100, QVGA Kinect frames of 7-Scenes give only ~40
+    /// landmarks per keyframe; at 30 about 130). Both pyramid levels: with the image level only
+    /// (`octaves` 1, about half the detector's work) 7-Scenes SLAM went 0.0331 -> 0.0362 m over
+    /// `cargo xtask spread`, better than odometry in 7 of 12 runs (`memory-budget.md`).
+    pub hessian: HessianParams,
+    /// Guide stage: `guide_landmarks` landmarks tracked from the motion-model prediction with a
+    /// wide search. Default [`TrackParams::GUIDE`].
+    pub guide: TrackParams,
+    /// Guide stage again, when the first gave no pose: a wider search. Default
+    /// [`TrackParams::GUIDE_WIDE`].
+    pub guide_wide: TrackParams,
+    /// Final stage: every selected landmark tracked from the start pose (the prediction's, or
+    /// the guides'). Default [`TrackParams::FINE`].
+    pub track: TrackParams,
+    /// Recovery: the affine-bank region matching of the guide landmarks, used when no cheaper
+    /// attempt gave a pose (its `initial_affine` is replaced per landmark by the map the
+    /// predicted motion induces). Default: [`MatchParams::DEFAULT`] with a 9 x 9 template (the
+    /// landmark templates are 16 x 16 pixels) and no forward-backward check (it would search
+    /// inside the template).
+    pub matching: MatchParams,
+    /// Landmarks matched in the guide stage (and in a recovery), spread over a 4 x 3 grid.
+    /// Default 24.
+    pub guide_landmarks: usize,
+    /// The guides' pose is used when it has at least this many inliers. Default 8.
+    pub min_guide_inliers: usize,
+    /// Pose estimation.
+    pub pose: PoseParams,
+    /// A feature is not made a landmark when a neighbour 2 pixels away differs in depth by more
+    /// than this fraction of its depth, or has none (occlusion edges). Default 0.05.
+    pub max_relative_depth_step: f32,
+    /// New landmarks one keyframe creates at most. Default 200.
+    pub max_new_landmarks: usize,
+    /// Landmarks matched per frame at most, spread over an 8 x 6 grid (bounds the per-frame
+    /// cost, about 30 k host instructions per landmark). Default 140, with
+    /// `keyframe_min_inliers` scaled along (56 = 0.4 x 140): the largest count whose front end
+    /// meets the 6 M host-instruction median of issue 3 (5.84 M over 200 7-Scenes frames with
+    /// depth registered to colour, against 6.99 M at 200). It costs about 1 mm of 7-Scenes ATE
+    /// (means over 12 runs, odometry 0.0376 -> 0.0389 m, SLAM 0.0367 -> 0.0378 m, both bars a
+    /// centimetre away) and 0.4 mm of demo odometry ATE (0.0054 -> 0.0058 m); the measured
+    /// trade-off is in memory-budget.md ("Where the figures stand", instructions per frame).
+    pub max_tracked: usize,
+    /// A keyframe that starts (or restarts) tracking needs at least this many landmarks.
+    /// Default 30.
+    pub min_keyframe_landmarks: usize,
+    /// Tracking needs at least this many matches. Default 12.
+    pub min_matches: usize,
+    /// A tracked pose needs at least this many inliers. Default 12.
+    pub min_inliers: usize,
+    /// Keyframe rule: new keyframe when the inliers fall below this fraction of the inliers the
+    /// frame after the last keyframe had. Default 0.7.
+    pub keyframe_inlier_ratio: f32,
+    /// Keyframe rule: new keyframe when inliers `<` this. Default 56 (see `max_tracked`).
+    pub keyframe_min_inliers: usize,
+    /// A keyframe due on a costly frame ([`FrontendWork::is_costly`]: it ran a second final
+    /// stage or estimated the rotation from the small images) is put off to the next tracked
+    /// frame, at most this many frames in a row; after that it is made on the costly frame
+    /// with `costly_keyframe_octaves`. 0 makes every keyframe when due. Default 3.
+    ///
+    /// Why: a costly frame that also makes a keyframe (feature detection, new landmarks) was
+    /// the costliest frame on the board, 19.5 M instructions against the 15 M bar of issue 6
+    /// (`memory-budget.md`, "Where the figures stand"); with this rule and
+    /// `costly_keyframe_octaves` 1 the 1000-frame budget replay's maximum is 14.6 M. The
+    /// trajectories change; SLAM's accuracy does not on average, odometry's improves, so SLAM
+    /// leads odometry less often. Means of 48 runs each (`cargo xtask spread --seeds 3 [--skips
+    /// ...]`, 7-Scenes), before -> after:
+    ///
+    /// | start frames | odometry | SLAM | SLAM better than odometry |
+    /// | --- | --- | --- | --- |
+    /// | 0, 50, ..., 550 (default) | 0.0383 -> 0.0373 m | 0.0332 -> 0.0331 m | 48 -> 41 |
+    /// | 25, 75, ..., 575 | 0.0382 -> 0.0380 m | 0.0364 -> 0.0355 m | 33 -> 33 |
+    /// | 10, 60, ..., 560 | 0.0376 -> 0.0366 m | 0.0354 -> 0.0362 m | 34 -> 24 |
+    ///
+    /// Over the 144 runs: odometry 0.0380 -> 0.0373 m, SLAM 0.0350 -> 0.0349 m, SLAM's online
+    /// poses 0.0363 -> 0.0373 m, SLAM better than odometry in 98 runs instead of 115.
+    ///
+    /// [`FrontendWork::is_costly`]: super::frontend::FrontendWork::is_costly
+    pub keyframe_max_put_off: u8,
+    /// Pyramid octaves of the feature detection when a keyframe is made on a costly frame (the
+    /// put-offs are used up): the image level alone costs about half the detection of both.
+    /// Must be a valid [`HessianParams::octaves`]. Default 1.
+    pub costly_keyframe_octaves: u8,
+    /// Keyframe rule: new keyframe when the camera is farther than this from the last keyframe,
+    /// metres. Default 0.25.
+    pub keyframe_max_translation_m: f32,
+    /// Keyframe rule: new keyframe when the camera has turned more than this from the last
+    /// keyframe, radians. Default 0.26 (15 degrees).
+    pub keyframe_max_rotation_rad: f32,
+    /// A keyframe feature within this distance of a tracked landmark's pixel makes no new
+    /// landmark (it is most likely the same point). Default 6 pixels.
+    pub new_landmark_min_distance_px: f32,
+    /// At a keyframe, a tracked landmark whose warp from its anchoring frame has an entry of
+    /// `A - I` beyond this is re-anchored (template re-taken). Default 0.12.
+    pub reanchor_max_warp: f32,
+    /// Odometry mode: fuse each inlier's measured depth into its landmark's position (an
+    /// inverse-variance running mean); off when a back end refines positions. Default `true`.
+    pub fuse_depth: bool,
+    /// Depth fusion stops adding weight after about this many measurements at the landmark's
+    /// depth, so a landmark keeps following new evidence. Default 20.
+    pub max_fused_measurements: f32,
+    /// A tracked landmark is dropped when it was visible at least `cull_min_visible` times and
+    /// found in less than this fraction of them. Default 0.3.
+    pub cull_min_found_ratio: f32,
+    /// See `cull_min_found_ratio`. Default 10.
+    pub cull_min_visible: u16,
+    /// A tracked landmark not found for this many frames is dropped. Default 60.
+    pub cull_max_unseen_frames: u32,
+    /// Seed of the pose estimator's random sampling (RANSAC). Default `0x5EED_F00D`.
+    pub rng_seed: u64,
+    /// Map reuse: at each keyframe, look for the map's untracked landmarks among its features
+    /// (see `frontend_reuse.rs`). Default `false`: measured, it makes SLAM worse on 7-Scenes and
+    /// on the demo (`frontend_reuse.rs` has the figures).
+    pub map_reuse: bool,
 }
 
-impl PoseParams {
-    /// The defaults, usable in `const` contexts (what [`Default`] gives).
+impl FrontendParams {
+    /// The defaults, documented per field; matching and pose values equal their own `Default`s
+    /// except where a field's documentation says otherwise (a unit test checks it).
     pub const DEFAULT: Self = Self {
-        pixel_sigma_px: 1.0,
-        depth_noise_coeff_per_m: 3.0e-3,
-        huber_delta_px: 2.447_7, // sqrt(5.991)
-        chi2_reprojection: 5.991,
-        chi2_depth: 3.841,
-        max_iterations: 10,
-        refine_rounds: 3,
-        min_step_translation_m: 1.0e-5,
-        min_step_rotation_rad: 1.0e-5,
-        ransac_iterations: 128,
-        ransac_confidence: 0.999,
-        min_inliers: 15,
-        min_inlier_ratio: 0.5,
-        max_sigma_translation_m: 0.05,
-        max_sigma_rotation_rad: 0.035,
+        // 30 instead of the detector's 100: at QVGA on 7-Scenes, 100 left ~40 landmarks per
+        // keyframe and lost 38 of the first 100 frames; 30 gives ~130 and loses none.
+        hessian: HessianParams { threshold: 30.0, ..HessianParams::DEFAULT },
+        guide: TrackParams::GUIDE,
+        guide_wide: TrackParams::GUIDE_WIDE,
+        track: TrackParams::FINE,
+        matching: MatchParams {
+            half_size: 4,
+            forward_backward_max_px: None,
+            ..MatchParams::DEFAULT
+        },
+        guide_landmarks: 24,
+        min_guide_inliers: 8,
+        pose: PoseParams::DEFAULT,
+        max_relative_depth_step: 0.05,
+        max_new_landmarks: 200,
+        max_tracked: 140,
+        min_keyframe_landmarks: 30,
+        min_matches: 12,
+        min_inliers: 12,
+        keyframe_inlier_ratio: 0.7,
+        keyframe_min_inliers: 56,
+        keyframe_max_put_off: 3,
+        costly_keyframe_octaves: 1,
+        keyframe_max_translation_m: 0.25,
+        keyframe_max_rotation_rad: 0.26,
+        new_landmark_min_distance_px: 6.0,
+        reanchor_max_warp: 0.12,
+        fuse_depth: true,
+        max_fused_measurements: 20.0,
+        cull_min_found_ratio: 0.3,
+        cull_min_visible: 10,
+        cull_max_unseen_frames: 60,
+        rng_seed: 0x5EED_F00D,
+        map_reuse: false,
     };
-}
 
-impl Default for PoseParams {
-    fn default() -> Self {
-        Self::DEFAULT
+    /// These parameters with the sensor's measurement model (depth range, noise; the pose
+    /// estimator weighs with it).
+    pub const fn with_sensor(self, sensor: SensorModel) -> Self {
+        Self { pose: PoseParams { sensor, ..self.pose }, ..self }
+    }
+
+    /// The sensor's measurement model in use (the pose estimator's).
+    pub const fn sensor(&self) -> &SensorModel {
+        &self.pose.sensor
+    }
+
+    /// Whether the front end's own values are in range (detection, matching and pose parameters
+    /// are checked by their own functions when used).
+    pub fn is_valid(&self) -> bool {
+        let pos = |x: f32| x.is_finite() && x > 0.0;
+        pos(self.max_relative_depth_step)
+            && self.max_tracked > 0
+            && self.guide_landmarks >= 3
+            && self.min_guide_inliers >= 3
+            && self.guide.is_valid()
+            && self.guide_wide.is_valid()
+            && self.track.is_valid()
+            && self.keyframe_inlier_ratio.is_finite()
+            && pos(self.keyframe_max_translation_m)
+            && pos(self.keyframe_max_rotation_rad)
+            && self.new_landmark_min_distance_px.is_finite()
+            && pos(self.reanchor_max_warp)
+            && pos(self.max_fused_measurements)
+            && self.cull_min_found_ratio.is_finite()
+            && self.pose.is_valid()
+            && self.hessian.validate().is_ok()
+            && HessianParams { octaves: self.costly_keyframe_octaves, ..self.hessian }
+                .validate()
+                .is_ok()
     }
 }
 
-impl PoseParams {
-    /// Whether every value is in range: sigmas, thresholds and limits finite and positive,
-    /// at least one iteration and round, confidence and ratio in `[0, 1)` (confidence > 0).
-    pub fn is_valid(&self) -> bool {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
-        pos(self.pixel_sigma_px)
-            && pos(self.depth_noise_coeff_per_m)
-            && pos(self.huber_delta_px)
-            && pos(self.chi2_reprojection)
-            && pos(self.chi2_depth)
-            && pos(self.min_step_translation_m)
-            && pos(self.min_step_rotation_rad)
-            && pos(self.max_sigma_translation_m)
-            && pos(self.max_sigma_rotation_rad)
-            && self.max_iterations > 0
-            && self.refine_rounds > 0
-            && self.ransac_confidence > 0.0
-            && self.ransac_confidence < 1.0
-            && self.min_inlier_ratio >= 0.0
-            && self.min_inlier_ratio < 1.0
+impl Default for FrontendParams {
+    fn default() -> Self {
+        Self::DEFAULT
     }
 }

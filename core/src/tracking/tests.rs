@@ -1,267 +1,347 @@
-//! Known-answer tests of pose estimation on synthetic scenes.
+//! The front end on a small ray-cast scene with known poses, and on bad frames.
 //!
-//! Test code only: this file is compiled under #[cfg(test)] (see the `mod` line that includes it).
+//! Test code only: compiled under #[cfg(test)] from `frontend.rs`.
 
 extern crate std;
-use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
+use std::boxed::Box;
+use std::vec::Vec;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
 use super::*;
-use crate::geometry::{PinholeCamera, Pose, se3_exp};
+use crate::image::{DepthView, GrayView, ImageView};
 
-/// True depth noise coefficient of the synthetic sensor (Kinect v1), per metre.
-const SENSOR_DEPTH_COEFF: f32 = 1.4e-3;
-
-struct Gen(TrackingRng);
-
-impl Gen {
-    fn unit(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 / (1u32 << 24) as f32
-    }
-    fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-    /// Standard normal (Box-Muller).
-    fn gauss(&mut self) -> f32 {
-        let u1 = self.unit().max(1e-7);
-        let u2 = self.unit();
-        libm::sqrtf(-2.0 * libm::logf(u1)) * libm::cosf(2.0 * core::f32::consts::PI * u2)
-    }
-}
+const W: usize = 320;
+const H: usize = 240;
+const DEPTH_SCALE: f32 = 5000.0;
 
 fn camera() -> PinholeCamera {
-    PinholeCamera::new(525.0, 525.0, 319.5, 239.5, 640, 480).unwrap()
+    PinholeCamera::new(262.5, 262.5, 159.5, 119.5, W, H).unwrap()
 }
 
-/// About 10 degrees of rotation and 0.3 m of translation.
-fn truth() -> Pose {
-    let axis = Vector3::new(1.0, 2.0, -1.0).normalize();
+fn hash(i: i32, j: i32, k: u32) -> f32 {
+    let mut h = (i as u32).wrapping_mul(0x9E37_79B9) ^ (j as u32).wrapping_mul(0x85EB_CA6B) ^ k;
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2C1B_3C6D);
+    h ^= h >> 12;
+    (h & 0xFFFF) as f32 / 65535.0
+}
+
+/// Gray level of the wall at world `(x, y)`: jittered Gaussian blobs of random contrast on a
+/// lattice of 8 cm, over a smooth gradient.
+fn texture(x: f32, y: f32) -> f32 {
+    const S: f32 = 0.08;
+    let (ci, cj) = (libm::floorf(x / S) as i32, libm::floorf(y / S) as i32);
+    let mut g = 128.0 + 20.0 * libm::sinf(1.3 * x + 0.7 * y);
+    for i in ci - 1..=ci + 1 {
+        for j in cj - 1..=cj + 1 {
+            let bx = (i as f32 + 0.2 + 0.6 * hash(i, j, 1)) * S;
+            let by = (j as f32 + 0.2 + 0.6 * hash(i, j, 2)) * S;
+            let amp = 160.0 * (hash(i, j, 3) - 0.5);
+            let sigma = 0.012 + 0.01 * hash(i, j, 4);
+            let r2 = (x - bx) * (x - bx) + (y - by) * (y - by);
+            g += amp * libm::expf(-r2 / (2.0 * sigma * sigma));
+        }
+    }
+    g.clamp(0.0, 255.0)
+}
+
+/// Renders the wall `z_w = 2 + 0.1 x_w` seen from `t_wc`: gray and raw depth (scale 5000).
+fn render(t_wc: &Pose) -> (Vec<u8>, Vec<u16>) {
+    let cam = camera();
+    let (mut gray, mut depth) = (vec_of(0u8), vec_of(0u16));
+    let o = t_wc.translation.vector;
+    for v in 0..H {
+        for u in 0..W {
+            let d_c = cam.back_project(u as f32, v as f32, 1.0).coords;
+            let d = t_wc.rotation * d_c;
+            // Plane n.p = 2 with n = (-0.1, 0, 1).
+            let n = Vector3::new(-0.1, 0.0, 1.0);
+            let t = (2.0 - n.dot(&o)) / n.dot(&d);
+            let hit = o + d * t;
+            gray[v * W + u] = texture(hit.x, hit.y) as u8;
+            depth[v * W + u] = (t * DEPTH_SCALE) as u16; // depth along the optical axis (d_c.z = 1)
+        }
+    }
+    (gray, depth)
+}
+
+fn vec_of<T: Copy>(x: T) -> Vec<T> {
+    std::vec![x; W * H]
+}
+
+fn frame<'a>(t: f64, gray: &'a [u8], depth: &'a [u16]) -> RgbdFrame<'a> {
+    RgbdFrame {
+        timestamp_s: t,
+        gray: GrayView::packed(gray, W, H).unwrap(),
+        depth: DepthView::new(ImageView::packed(depth, W, H).unwrap(), DEPTH_SCALE).unwrap(),
+    }
+}
+
+fn pose_at(k: usize) -> Pose {
+    let s = k as f32;
     Pose::from_parts(
-        Translation3::new(0.2, -0.15, 0.16),
-        UnitQuaternion::from_scaled_axis(axis * 10f32.to_radians()),
+        Translation3::new(0.01 * s, -0.004 * s, 0.006 * s),
+        UnitQuaternion::from_scaled_axis(Vector3::new(0.002 * s, -0.004 * s, 0.003 * s)),
     )
 }
 
-/// `truth()` moved by about 5 cm and 3 degrees.
-fn perturbed() -> Pose {
-    let d = 0.05 / 3f32.sqrt();
-    let r = 3f32.to_radians() / 3f32.sqrt();
-    se3_exp(&Vector6::new(d, -d, d, r, r, -r)) * truth()
+/// A map small enough for tests yet larger than one keyframe's needs.
+type TestMap = crate::map::Map<16, 2048>;
+
+fn new_map() -> Box<TestMap> {
+    Box::default()
 }
 
-/// Translation (m) and rotation (deg) of `a` relative to `b`.
-fn pose_error(a: &Pose, b: &Pose) -> (f32, f32) {
-    let e = a * b.inverse();
-    (e.translation.vector.norm(), e.rotation.angle().to_degrees())
-}
-
-struct Scene {
-    corrs: heapless::Vec<Correspondence, MAX_CORRESPONDENCES>,
-    outliers: InlierMask,
-}
-
-/// `n` points 1-4 m in front of the true camera over the whole image; pixel noise `noise_px`
-/// (standard deviation), depth on a fraction `depth_fraction` of them (with Kinect noise when
-/// `noise_px > 0`), and every correspondence with `i % 10 < outlier_tenths` replaced by a random
-/// pixel (and random depth).
-fn scene(n: usize, noise_px: f32, depth_fraction: f32, outlier_tenths: usize, seed: u64) -> Scene {
+#[test]
+fn tracks_a_known_motion_to_a_centimetre() {
     let cam = camera();
-    let t_wc = truth().inverse();
-    let mut g = Gen(TrackingRng::new(seed));
-    let mut s = Scene { corrs: heapless::Vec::new(), outliers: InlierMask::new() };
-    for i in 0..n {
-        let (u, v, z) = (g.uniform(5.0, 634.0), g.uniform(5.0, 474.0), g.uniform(1.0, 4.0));
-        let p_w = t_wc * cam.back_project(u, v, z);
-        let mut uv = Point2::new(u + noise_px * g.gauss(), v + noise_px * g.gauss());
-        let depth_noise = if noise_px > 0.0 { SENSOR_DEPTH_COEFF * z * z * g.gauss() } else { 0.0 };
-        let mut depth_m = (g.unit() < depth_fraction).then_some(z + depth_noise);
-        if i % 10 < outlier_tenths {
-            uv = Point2::new(g.uniform(0.0, 639.0), g.uniform(0.0, 479.0));
-            depth_m = depth_m.map(|_| g.uniform(1.0, 4.0));
-            s.outliers.insert(i);
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    let mut last_err = f32::INFINITY;
+    for k in 0..12 {
+        let truth = pose_at(k);
+        let (g, d) = render(&truth);
+        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
+        assert!(r.tracked, "frame {k}: {r:?}");
+        assert_eq!(r.state, FrontendState::Tracking);
+        if k > 0 {
+            assert!(r.inliers >= 30, "frame {k}: {r:?}");
+            // A smooth motion: the start pose is the prediction's or the guides', never a
+            // recovery's.
+            assert!(
+                matches!(r.guide_stage, GuideStage::None | GuideStage::MotionModel),
+                "frame {k}: {:?}",
+                r.guide_stage
+            );
         }
-        s.corrs.push(Correspondence { p_w, uv, depth_m }).unwrap();
+        // What the frame ran: the first is a keyframe with no tracking; later ones run at least
+        // one final stage, and detect features exactly when they make a keyframe.
+        let w = r.work;
+        if k == 0 {
+            assert_eq!((w.final_stages, w.guide_runs), (0, 0), "{w:?}");
+        } else {
+            assert!(w.final_stages >= 1, "frame {k}: {w:?}");
+            // A smooth motion needs no rotation from the small images.
+            assert!(!w.rotation_estimated, "frame {k}: {w:?}");
+        }
+        assert_eq!(w.detected, r.keyframe.is_some(), "frame {k}: {w:?}");
+        // The first frame defines the world; the truth starts at the identity too.
+        last_err = (r.t_wc.translation.vector - truth.translation.vector).norm();
+        let rot_err = (r.t_wc.rotation.inverse() * truth.rotation).angle();
+        assert!(last_err < 0.01, "frame {k}: translation error {last_err} m, {r:?}");
+        assert!(rot_err < 0.01, "frame {k}: rotation error {rot_err} rad");
     }
-    s
-}
-
-/// Fraction of correspondences whose inlier flag matches the truth.
-fn flag_accuracy(est: &PoseEstimate, s: &Scene) -> f32 {
-    let right = (0..s.corrs.len()).filter(|&i| est.inliers.contains(i) != s.outliers.contains(i));
-    right.count() as f32 / s.corrs.len() as f32
+    assert!(last_err < 0.01);
+    let stats = fe.stats();
+    assert_eq!((stats.frames, stats.tracked_frames, stats.lost_frames), (12, 12, 0));
+    assert!(stats.keyframes >= 1);
+    assert_eq!(map.num_keyframes(), stats.keyframes as usize);
 }
 
 #[test]
-fn noiseless_pose_is_recovered_from_a_perturbed_guess() {
-    for depth_fraction in [0.0, 0.5, 1.0] {
-        let s = scene(100, 0.0, depth_fraction, 0, 7);
-        let est =
-            refine_pose(&camera(), &s.corrs, &perturbed(), None, &PoseParams::default()).unwrap();
-        let (dt, dr) = pose_error(&est.t_cw, &truth());
-        std::eprintln!("noiseless depth {depth_fraction}: {dt:e} m {dr:e} deg {est:?}");
-        assert!(dt < 1e-3 && dr < 0.05, "{dt} m, {dr} deg");
-        assert_eq!(est.num_inliers, 100);
-        assert!(est.rms_reprojection_px < 0.01 && est.converged);
+fn landmarks_outlive_their_keyframe_and_the_map_stays_bounded() {
+    let cam = camera();
+    // A keyframe every 10 cm, two keyframes at most: the oldest is retired, tracked landmarks
+    // survive it.
+    let params = FrontendParams { keyframe_max_translation_m: 0.1, ..FrontendParams::DEFAULT };
+    let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+    let mut map: Box<crate::map::Map<2, 600>> = Box::default();
+    let (g, d) = render(&pose_at(0));
+    let r = fe.process(&frame(0.0, &g, &d), &cam, &mut map).unwrap();
+    let first_kf = r.keyframe.unwrap();
+    let first_ids: Vec<_> = fe.local_map().items().iter().map(|t| t.id).collect();
+    let mut made = 0;
+    for k in 1..40 {
+        let (g, d) = render(&pose_at(k));
+        let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
+        assert!(r.tracked, "frame {k}: {r:?}");
+        made += usize::from(r.keyframe.is_some());
+        assert!(map.num_keyframes() <= 2 && map.num_landmarks() <= 600);
+    }
+    assert!(made >= 2, "the motion needs new keyframes ({made})");
+    assert!(map.keyframe(first_kf).is_none(), "the first keyframe was retired");
+    let still = fe.local_map().items().iter().filter(|t| first_ids.contains(&t.id)).count();
+    assert!(still > 0, "landmarks of the retired keyframe are still tracked");
+    for t in fe.local_map().items() {
+        assert!(map.landmark(t.id).is_some(), "every tracked landmark is in the map");
     }
 }
 
 #[test]
-fn noisy_pose_is_within_millimetres() {
-    for depth_fraction in [0.0, 0.7] {
-        let s = scene(200, 0.5, depth_fraction, 0, 11);
-        let est =
-            refine_pose(&camera(), &s.corrs, &perturbed(), None, &PoseParams::default()).unwrap();
-        let (dt, dr) = pose_error(&est.t_cw, &truth());
-        std::eprintln!("noisy depth {depth_fraction}: {dt:e} m {dr:e} deg rms {}", {
-            est.rms_reprojection_px
-        });
-        assert!(dt < 5e-3 && dr < 0.1, "{dt} m, {dr} deg");
-        assert!(est.num_inliers >= 190, "{}", est.num_inliers);
-        // The RMS is of the 2D error norm: sqrt(2) * 0.5 px.
-        assert!((est.rms_reprojection_px - 0.707).abs() < 0.1);
-        assert!(est.sigma_translation_m < 0.01 && est.sigma_rotation_rad < 0.01);
+fn black_frames_and_missing_depth_never_panic() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    let (black, no_depth) = (vec_of(0u8), vec_of(0u16));
+    let r = fe.process(&frame(0.0, &black, &no_depth), &cam, &mut map).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Initializing, false));
+    let (g, d) = render(&pose_at(0));
+    let r = fe.process(&frame(0.1, &g, &no_depth), &cam, &mut map).unwrap();
+    assert_eq!(r.state, FrontendState::Initializing, "no depth: no keyframe");
+    assert_eq!(map.num_keyframes(), 0, "a failed keyframe leaves nothing in the map");
+    let r = fe.process(&frame(0.2, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.keyframe.is_some() && r.tracked);
+    // A black frame while tracking: lost, pose held (the prediction), never a jump.
+    let r = fe.process(&frame(0.3, &black, &d), &cam, &mut map).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
+    assert!(r.t_wc.translation.vector.norm() < 1e-6);
+    // Saturated white: lost again; the second loss in a row restarts from a keyframe, which a
+    // flat image cannot give, so it stays lost.
+    let white = vec_of(255u8);
+    let r = fe.process(&frame(0.35, &white, &d), &cam, &mut map).unwrap();
+    assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
+    // All-invalid depth: matching works on the image, pixel-only residuals; must not panic.
+    let r = fe.process(&frame(0.4, &g, &no_depth), &cam, &mut map).unwrap();
+    assert!(r.state != FrontendState::Initializing);
+    // The same frame again (new timestamp) tracks at the same pose.
+    let r = fe.process(&frame(0.5, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.state == FrontendState::Tracking, "{r:?}");
+    assert!(r.t_wc.translation.vector.norm() < 0.005, "{r:?}");
+    assert!(fe.stats().lost_frames >= 1);
+}
+
+#[test]
+fn a_frame_from_another_scene_is_lost_not_a_jump() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    for k in 0..3 {
+        let (g, d) = render(&pose_at(k));
+        assert!(fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap().tracked);
+    }
+    // Noise unrelated to the wall, with a plausible depth.
+    let noise: Vec<u8> = (0..W * H).map(|i| (hash(i as i32, 7, 9) * 255.0) as u8).collect();
+    let (_, d) = render(&pose_at(3));
+    let before = fe.process(&frame(3.0 / 30.0, &noise, &d), &cam, &mut map).unwrap();
+    assert_eq!((before.state, before.tracked), (FrontendState::Lost, false));
+    let predicted = pose_at(3).translation.vector;
+    assert!((before.t_wc.translation.vector - predicted).norm() < 0.01, "held at the prediction");
+    // Back to the scene: tracked again.
+    let (g, d) = render(&pose_at(4));
+    let r = fe.process(&frame(4.0 / 30.0, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.tracked, "{r:?}");
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    let (g, d) = render(&pose_at(0));
+    fe.process(&frame(1.0, &g, &d), &cam, &mut map).unwrap();
+    let e = fe.process(&frame(1.0, &g, &d), &cam, &mut map).unwrap_err();
+    assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
+    let e = fe.process(&frame(f64::NAN, &g, &d), &cam, &mut map).unwrap_err();
+    assert!(matches!(e, FrontendError::TimestampNotIncreasing { .. }));
+    let small = PinholeCamera::new(100.0, 100.0, 50.0, 50.0, 100, 100).unwrap();
+    let e = fe.process(&frame(2.0, &g, &d), &small, &mut map).unwrap_err();
+    let sizes = ((W, H), (W, H), (100, 100), (W, H));
+    assert!(
+        matches!(e, FrontendError::SizeMismatch { gray, depth, camera, capacity }
+            if (gray, depth, camera, capacity) == sizes),
+        "{e:?}"
+    );
+    assert_eq!(
+        std::format!("{e}"),
+        "gray image 320x240, depth covering 320x240, camera 100x100: the three must have one \
+         size, at most the 320x240 that the front end holds"
+    );
+    // A map the caller cleared: the front end starts over instead of following dead ids.
+    map.clear();
+    let r = fe.process(&frame(3.0, &g, &d), &cam, &mut map).unwrap();
+    assert!(r.keyframe.is_some() && r.reinitialized, "{r:?}");
+}
+
+#[test]
+fn defaults_match_the_building_blocks_and_sizes_are_bounded() {
+    let p = FrontendParams::DEFAULT;
+    let hessian = crate::features::HessianParams { threshold: 30.0, ..Default::default() };
+    assert_eq!(p.hessian, hessian);
+    let m = crate::matching::MatchParams::DEFAULT;
+    assert_eq!(
+        p.matching,
+        crate::matching::MatchParams { half_size: 4, forward_backward_max_px: None, ..m }
+    );
+    let (guide, fine) = (crate::matching::TrackParams::GUIDE, crate::matching::TrackParams::FINE);
+    assert_eq!((p.guide, p.track), (guide, fine));
+    assert_eq!(p.guide_wide, crate::matching::TrackParams::GUIDE_WIDE);
+    assert_eq!(p.pose, crate::pose::PoseParams::default());
+    assert!(p.is_valid());
+    let sensor = crate::config::SensorModel::DEFAULT;
+    assert_eq!(p.with_sensor(sensor), p, "the default sensor model is the default");
+    let quiet = crate::config::SensorModel { depth_noise_coeff_per_m: 2.0e-4, ..sensor };
+    let q = p.with_sensor(quiet);
+    assert_eq!(q.sensor(), &quiet, "the sensor model reaches the pose estimator");
+    assert_eq!(crate::pose::PoseParams { sensor, ..q.pose }, p.pose);
+    let qvga = core::mem::size_of::<QvgaFrontend>();
+    let vga = core::mem::size_of::<VgaFrontend>();
+    std::println!("QvgaFrontend {qvga} bytes, VgaFrontend {vga} bytes");
+    // The local map dominates: 256 templates of 16 x 16 pixels with their anchors.
+    assert!(qvga < 240_000, "{qvga}");
+}
+
+#[test]
+fn a_keyframe_due_on_a_costly_frame_is_put_off_a_bounded_number_of_times() {
+    let p = FrontendParams::DEFAULT;
+    let full = KeyframeDecision::Make { octaves: p.hessian.octaves };
+    let cheap = KeyframeDecision::Make { octaves: p.costly_keyframe_octaves };
+    assert_eq!(decide_keyframe(false, false, 0, &p), KeyframeDecision::None);
+    assert_eq!(decide_keyframe(false, true, 2, &p), KeyframeDecision::None);
+    assert_eq!(decide_keyframe(true, false, 0, &p), full);
+    // A cheap frame makes the keyframe at once, even after put-offs.
+    assert_eq!(decide_keyframe(true, false, p.keyframe_max_put_off, &p), full);
+    for put_off in 0..p.keyframe_max_put_off {
+        assert_eq!(decide_keyframe(true, true, put_off, &p), KeyframeDecision::PutOff);
+    }
+    // Put-offs used up: made on the costly frame, with fewer octaves.
+    assert_eq!(decide_keyframe(true, true, p.keyframe_max_put_off, &p), cheap);
+    assert!(p.costly_keyframe_octaves < p.hessian.octaves);
+    // 0 makes every keyframe when due.
+    let never = FrontendParams { keyframe_max_put_off: 0, ..p };
+    assert_eq!(decide_keyframe(true, true, 0, &never), cheap);
+    // What makes a frame costly.
+    let w = FrontendWork { final_stages: 1, guide_runs: 3, ..FrontendWork::default() };
+    assert!(!w.is_costly());
+    assert!(FrontendWork { final_stages: 2, ..w }.is_costly());
+    assert!(FrontendWork { rotation_estimated: true, ..w }.is_costly());
+}
+
+#[test]
+fn costly_keyframe_octaves_out_of_range_are_an_error() {
+    let cam = camera();
+    let (g, d) = render(&pose_at(0));
+    for octaves in [0, 9] {
+        let params = FrontendParams { costly_keyframe_octaves: octaves, ..FrontendParams::DEFAULT };
+        assert!(!params.is_valid());
+        let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+        let mut map = new_map();
+        let e = fe.process(&frame(0.0, &g, &d), &cam, &mut map).unwrap_err();
+        assert_eq!(e, FrontendError::InvalidParams);
+        assert_eq!(map.num_keyframes(), 0, "nothing changes on an error");
     }
 }
 
 #[test]
-fn ransac_recovers_the_pose_and_flags_outliers() {
-    let s = scene(200, 0.5, 0.7, 3, 23);
-    let params = PoseParams::default();
-    let mut rng = TrackingRng::new(42);
-    let est = track_pose(&camera(), &s.corrs, None, &params, &mut rng).unwrap();
-    let (dt, dr) = pose_error(&est.t_cw, &truth());
-    let acc = flag_accuracy(&est, &s);
-    std::eprintln!("ransac 30% outliers: {dt:e} m {dr:e} deg flags {acc} {est:?}");
-    assert!(dt < 5e-3 && dr < 0.1, "{dt} m, {dr} deg");
-    assert!(acc > 0.95, "{acc}");
-
-    // A far-off prediction (30 cm, 20 deg) is refined, rejected and replaced by RANSAC.
-    let bad = se3_exp(&Vector6::new(0.3, 0.0, 0.0, 0.0, 0.35, 0.0)) * truth();
-    let est2 = track_pose(&camera(), &s.corrs, Some(&bad), &params, &mut rng).unwrap();
-    let (dt, dr) = pose_error(&est2.t_cw, &truth());
-    assert!(dt < 5e-3 && dr < 0.1, "{dt} m, {dr} deg");
-    assert!(flag_accuracy(&est2, &s) > 0.95);
-
-    // A good prediction with outliers: robust refinement alone flags them.
-    let est3 = track_pose(&camera(), &s.corrs, Some(&perturbed()), &params, &mut rng).unwrap();
-    let (dt, dr) = pose_error(&est3.t_cw, &truth());
-    std::eprintln!("refine 30% outliers: {dt:e} m {dr:e} deg flags {}", flag_accuracy(&est3, &s));
-    assert!(dt < 5e-3 && dr < 0.1, "{dt} m, {dr} deg");
-    assert!(flag_accuracy(&est3, &s) > 0.95);
-}
-
-#[test]
-fn ransac_is_deterministic_for_a_seed() {
-    let s = scene(150, 0.5, 0.6, 3, 5);
-    let run = |seed| {
-        ransac_pose(&camera(), &s.corrs, &PoseParams::default(), &mut TrackingRng::new(seed))
-            .unwrap()
+fn without_costly_frames_putting_off_changes_nothing() {
+    // The smooth scene never runs a second final stage nor the small-image rotation, so the
+    // put-off rule must leave every output bit as it is with the rule off.
+    let cam = camera();
+    let run = |params: FrontendParams| {
+        let mut fe: Box<QvgaFrontend> = Box::new(QvgaFrontend::with_params(params));
+        let mut map = new_map();
+        let mut out = Vec::new();
+        for k in 0..24 {
+            let (g, d) = render(&pose_at(k));
+            let r = fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap();
+            assert!(!r.work.is_costly(), "frame {k}: {:?}", r.work);
+            out.push((r.t_wc.to_homogeneous(), r.keyframe, r.inliers));
+        }
+        (out, fe.stats())
     };
-    assert_eq!(run(9), run(9));
-}
-
-#[test]
-fn too_few_correspondences_are_errors() {
-    let s = scene(20, 0.0, 1.0, 0, 3);
-    let p = PoseParams::default();
-    let r = refine_pose(&camera(), &s.corrs[..2], &truth(), None, &p);
-    assert_eq!(r, Err(PoseError::TooFewCorrespondences { count: 2, required: 3 }));
-    // Ten exact points are a fine pose but fewer than min_inliers (15).
-    let r = refine_pose(&camera(), &s.corrs[..10], &truth(), None, &p);
-    assert_eq!(r, Err(PoseError::TooFewInliers { inliers: 10, required: 15 }));
-    let no_depth = scene(20, 0.0, 0.0, 0, 3);
-    let r = ransac_pose(&camera(), &no_depth.corrs, &p, &mut TrackingRng::new(1));
-    assert_eq!(r, Err(PoseError::TooFewCorrespondences { count: 0, required: 3 }));
-    let r = track_pose(&camera(), &[], None, &p, &mut TrackingRng::new(1));
-    assert!(matches!(r, Err(PoseError::TooFewCorrespondences { .. })));
-}
-
-#[test]
-fn degenerate_scenes_are_errors_not_panics() {
-    let cam = camera();
-    let t_wc = truth().inverse();
-    let p = PoseParams::default();
-    let line = |k: usize| Point3::new(-0.5, -0.3, 1.5) + Vector3::new(0.04, 0.02, 0.05) * k as f32;
-    let identical = |_: usize| cam.back_project(300.0, 200.0, 2.0);
-    for make in [&line as &dyn Fn(usize) -> Point3<f32>, &identical] {
-        for depth in [false, true] {
-            let corrs: heapless::Vec<Correspondence, 64> = (0..30)
-                .map(|k| {
-                    let p_c = make(k);
-                    let uv = cam.project(&p_c).unwrap();
-                    Correspondence { p_w: t_wc * p_c, uv, depth_m: depth.then_some(p_c.z) }
-                })
-                .collect();
-            let r = refine_pose(&cam, &corrs, &perturbed(), None, &p);
-            assert!(matches!(r, Err(PoseError::Degenerate)), "{r:?}");
-            let r = track_pose(&cam, &corrs, Some(&perturbed()), &p, &mut TrackingRng::new(3));
-            assert!(r.is_err(), "{r:?}");
-        }
-    }
-}
-
-#[test]
-fn bad_input_is_an_error() {
-    let s = scene(30, 0.0, 1.0, 0, 4);
-    let cam = camera();
-    let p = PoseParams::default();
-    let mut rng = TrackingRng::new(1);
-    let cases: [fn(&mut Correspondence); 5] = [
-        |c| c.p_w.x = f32::NAN,
-        |c| c.uv.y = f32::INFINITY,
-        |c| c.depth_m = Some(f32::NAN),
-        |c| c.depth_m = Some(0.0),
-        |c| c.p_w.z = f32::NEG_INFINITY,
-    ];
-    for spoil in cases {
-        let mut corrs = s.corrs.clone();
-        spoil(&mut corrs[17]);
-        let want = Err(PoseError::InvalidCorrespondence { index: 17 });
-        assert_eq!(refine_pose(&cam, &corrs, &truth(), None, &p), want);
-        assert_eq!(ransac_pose(&cam, &corrs, &p, &mut rng), want);
-        assert_eq!(track_pose(&cam, &corrs, Some(&truth()), &p, &mut rng), want);
-    }
-    let many = [s.corrs[0]; MAX_CORRESPONDENCES + 1];
-    let r = refine_pose(&cam, &many, &truth(), None, &p);
-    assert_eq!(r, Err(PoseError::TooManyCorrespondences { count: MAX_CORRESPONDENCES + 1 }));
-    let bad = PoseParams { pixel_sigma_px: f32::NAN, ..p };
-    assert_eq!(refine_pose(&cam, &s.corrs, &truth(), None, &bad), Err(PoseError::InvalidParams));
-    let bad = PoseParams { ransac_confidence: 1.0, ..p };
-    assert_eq!(ransac_pose(&cam, &s.corrs, &bad, &mut rng), Err(PoseError::InvalidParams));
-    // A NaN prediction is not input error: it fails to refine and RANSAC takes over.
-    let nan_pose = Pose::from_parts(Translation3::new(f32::NAN, 0.0, 0.0), truth().rotation);
-    let est = track_pose(&cam, &s.corrs, Some(&nan_pose), &p, &mut rng).unwrap();
-    assert!(pose_error(&est.t_cw, &truth()).0 < 1e-3);
-}
-
-#[test]
-fn errors_display() {
-    let mut text = heapless::String::<96>::new();
-    let e = PoseError::TooFewInliers { inliers: 4, required: 15 };
-    core::fmt::write(&mut text, format_args!("{e}")).unwrap();
-    assert_eq!(text.as_str(), "4 inliers, need 15");
-}
-
-#[test]
-fn ransac_succeeds_over_many_seeds_and_scenes() {
-    let params = PoseParams::default();
-    let (mut worst_t, mut worst_r, mut worst_flags) = (0.0f32, 0.0f32, 1.0f32);
-    for seed in 1..=25 {
-        let s = scene(80, 0.5, 0.6, 3, 1000 + seed);
-        let est = ransac_pose(&camera(), &s.corrs, &params, &mut TrackingRng::new(seed)).unwrap();
-        let (dt, dr) = pose_error(&est.t_cw, &truth());
-        worst_t = worst_t.max(dt);
-        worst_r = worst_r.max(dr);
-        worst_flags = worst_flags.min(flag_accuracy(&est, &s));
-    }
-    std::eprintln!(
-        "25 scenes of 80, 30% outliers: worst {worst_t:e} m {worst_r:e} deg {worst_flags}"
-    );
-    assert!(worst_t < 1e-2 && worst_r < 0.2 && worst_flags > 0.95);
-    std::eprintln!(
-        "sizes: PoseEstimate {} B, InlierMask {} B, Correspondence {} B, MotionModel {} B",
-        core::mem::size_of::<PoseEstimate>(),
-        core::mem::size_of::<InlierMask>(),
-        core::mem::size_of::<Correspondence>(),
-        core::mem::size_of::<MotionModel>()
-    );
+    let (with_rule, stats) = run(FrontendParams::DEFAULT);
+    let (without, _) = run(FrontendParams { keyframe_max_put_off: 0, ..FrontendParams::DEFAULT });
+    assert_eq!(stats.keyframes_put_off, 0);
+    assert!(stats.keyframes >= 2, "the motion makes keyframes ({})", stats.keyframes);
+    assert_eq!(with_rule, without);
 }

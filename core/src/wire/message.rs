@@ -9,7 +9,6 @@ use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Pose;
-use crate::tracking::{FrameResult, FrontendState, FrontendStats};
 
 /// One message on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -25,7 +24,7 @@ pub enum Message {
     Fault(FaultMessage),
 }
 
-/// The tracking state after a frame (the front end's [`FrontendState`], as one byte).
+/// The tracking state after a frame (the front end's `FrontendState`, as one byte).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TrackingState {
@@ -35,16 +34,6 @@ pub enum TrackingState {
     Tracking,
     /// The frame could not be tracked; its pose is the motion-model prediction.
     Lost,
-}
-
-impl From<FrontendState> for TrackingState {
-    fn from(s: FrontendState) -> Self {
-        match s {
-            FrontendState::Initializing => Self::Initializing,
-            FrontendState::Tracking => Self::Tracking,
-            FrontendState::Lost => Self::Lost,
-        }
-    }
 }
 
 /// Flags of a [`PoseMessage`], one bit each (unknown bits are kept, never an error).
@@ -92,41 +81,7 @@ pub struct PoseMessage {
     pub matches: u16,
 }
 
-/// `n` as `u16`, saturated.
-fn saturate_u16(n: usize) -> u16 {
-    u16::try_from(n).unwrap_or(u16::MAX)
-}
-
 impl PoseMessage {
-    /// The message for the front end's result `r` of frame `frame_index` captured at
-    /// `timestamp_s`. The pose's f32 values are copied bit for bit.
-    pub fn from_frame_result(frame_index: u32, timestamp_s: f64, r: &FrameResult) -> Self {
-        let t = &r.t_wc.translation.vector;
-        let q = r.t_wc.rotation.coords;
-        let mut flags = 0;
-        for (on, bit) in [
-            (r.tracked, PoseFlags::TRACKED),
-            (r.keyframe.is_some(), PoseFlags::KEYFRAME),
-            (r.guide_stage.is_recovery(), PoseFlags::RECOVERY),
-            (r.reinitialized, PoseFlags::REINITIALIZED),
-        ] {
-            if on {
-                flags |= bit;
-            }
-        }
-        Self {
-            frame_index,
-            timestamp_s,
-            translation_m: [t.x, t.y, t.z],
-            // nalgebra stores quaternion coordinates as [i, j, k, w].
-            rotation_xyzw: [q.x, q.y, q.z, q.w],
-            state: r.state.into(),
-            flags: PoseFlags(flags),
-            inliers: saturate_u16(r.inliers),
-            matches: saturate_u16(r.matches),
-        }
-    }
-
     /// `t_wc` as a [`Pose`]; the quaternion is taken as sent (not renormalized), so the values are
     /// the firmware's bits.
     pub fn t_wc(&self) -> Pose {
@@ -157,22 +112,6 @@ pub struct StatusMessage {
     pub state_bytes: u32,
     /// Peak stack use measured by the board, bytes; 0 when not measured.
     pub stack_peak_bytes: u32,
-}
-
-impl StatusMessage {
-    /// The totals of the front end's `stats`, with the board's figures.
-    pub fn from_stats(stats: &FrontendStats, faults: u32, state_bytes: u32) -> Self {
-        Self {
-            frames: stats.frames,
-            tracked_frames: stats.tracked_frames,
-            lost_frames: stats.lost_frames,
-            keyframes: stats.keyframes,
-            recoveries: stats.bank_recoveries,
-            faults,
-            state_bytes,
-            stack_peak_bytes: 0,
-        }
-    }
 }
 
 /// What one tick of a [`CostMessage`] is.

@@ -7,6 +7,22 @@ use ferroslam_core::geometry::{PinholeCamera, Pose, se3_exp};
 use ferroslam_core::optim::{BaError, BundleAdjuster, CameraId, ObservationId, PointId, RigId};
 use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
+use ferroslam_core::config::capacity::{LOCAL_WINDOW_MAX, MAX_KEYFRAMES};
+
+/// Points of the stand-alone adjusters the tests and the benchmark use (larger than the back
+/// end's, which `config::BOARD_MAP` sizes).
+pub const BA_MAX_POINTS: usize = 1536;
+/// Observations of the stand-alone adjusters.
+pub const BA_MAX_OBSERVATIONS: usize = 8192;
+/// Local BA over the capped window: one rig per keyframe (124,328 bytes on a 64-bit host, checked
+/// by `sizes_are_as_documented`).
+pub type LocalBundleAdjuster =
+    BundleAdjuster<LOCAL_WINDOW_MAX, LOCAL_WINDOW_MAX, BA_MAX_POINTS, BA_MAX_OBSERVATIONS>;
+/// Segmented global BA: one rig per segment (8 of 4 keyframes), every keyframe of the board's map
+/// a camera (99,504 bytes).
+pub type SegmentedBundleAdjuster =
+    BundleAdjuster<{ MAX_KEYFRAMES / 4 }, MAX_KEYFRAMES, BA_MAX_POINTS, BA_MAX_OBSERVATIONS>;
+
 /// xorshift64*, with Gaussian samples by Box-Muller.
 pub struct Rng(u64);
 

@@ -2,7 +2,7 @@
 //! options and the depth level.
 
 use clap::{Args, ValueEnum};
-use ferroslam_core::config::{Profile, QVGA, VGA};
+use ferroslam_core::config::{QVGA, Resolution, VGA};
 
 use crate::run::{MapScale, Schedule, TrackMode};
 
@@ -16,8 +16,8 @@ pub enum ProfileArg {
 }
 
 impl ProfileArg {
-    /// The core's profile.
-    pub fn profile(self) -> Profile {
+    /// The core's processing resolution.
+    pub fn profile(self) -> Resolution {
         match self {
             Self::Qvga => QVGA,
             Self::Vga => VGA,

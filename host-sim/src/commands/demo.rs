@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use ferroslam_core::config::Tunables;
+use ferroslam_core::config::SensorModel;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
@@ -63,7 +63,7 @@ pub struct DemoArgs {
     #[command(flatten)]
     pub slam: SlamArgs,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
-    /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
+    /// `DepthView` level). Default: the resolution's (`Resolution::depth_level`), what the firmware
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
     #[arg(long, value_parser = depth_level_parser())]
     pub depth_level: Option<u8>,
@@ -123,11 +123,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             profile.downsample_levels,
             depth_level,
         );
-        let tunables = Tunables {
+        let sensor = SensorModel {
             depth_noise_coeff_per_m: sensor_depth_noise(args.depth_noise),
-            ..Tunables::default()
+            ..SensorModel::DEFAULT
         };
-        let options = RunOptions { tunables, ..RunOptions::new(profile, track_mode) };
+        let options = RunOptions { sensor, ..RunOptions::new(profile, track_mode) };
         let run = run::track(&mut source, frames, &cam, &options)?;
         let wall_s = started.elapsed().as_secs_f64();
         let note = format!(
@@ -138,7 +138,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
                 run_note(&track_mode, profile.name, (run.data.width, run.data.height)),
                 depth_level
             ),
-            tunables.depth_noise_coeff_per_m
+            sensor.depth_noise_coeff_per_m
         );
         let out_files = write_odometry(out, &run, Some(&gt), profile.name, 0, note)?;
         println!("demo: {}", summary(&out_files.report, wall_s));
@@ -202,7 +202,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 /// 2.69 mm (max 4.44) against 7.78 mm (max 13.27).
 const DEMO_DEPTH_NOISE_FLOOR: f32 = 2.0e-4;
 
-/// The depth noise the demo tells the core ([`Tunables::depth_noise_coeff_per_m`]): what the
+/// The depth noise the demo tells the core ([`SensorModel::depth_noise_coeff_per_m`]): what the
 /// renderer adds (`--depth-noise`, `sigma_z = k z^2`, i.e. `k` in inverse depth) combined with
 /// [`DEMO_DEPTH_NOISE_FLOOR`]. A real sensor's figure comes from its data sheet or calibration;
 /// the default (3e-3, Kinect v1 class) would weigh the demo's exact depth 15 times too lightly.

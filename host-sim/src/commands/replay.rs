@@ -51,7 +51,7 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Keep the depth coarser than the gray image by this many halvings (0-2; the core's
-    /// `DepthView` level). Default: the profile's (`Profile::depth_level`), what the firmware
+    /// `DepthView` level). Default: the resolution's (`Resolution::depth_level`), what the firmware
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
     #[arg(long, value_parser = depth_level_parser())]
     pub depth_level: Option<u8>,

@@ -40,7 +40,7 @@ pub mod undistort;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use ferroslam_core::config::{Config, Profile, Tunables};
+use ferroslam_core::config::{ASSOCIATION_MAX_DT_S, QVGA, Resolution};
 
 pub use crate::frame::OwnedFrame;
 use crate::frame::halve_frame;
@@ -75,7 +75,7 @@ pub struct DatasetOptions {
     pub calibration: CalibrationSource,
     /// The processing resolution: frames are halved `profile.downsample_levels` times after
     /// decoding (default: the core's default profile, QVGA).
-    pub profile: Profile,
+    pub profile: Resolution,
     /// Drop this many associated frames from the start (default: 0), before `max_frames`.
     pub skip_frames: usize,
     /// Keep at most this many associated frames, the earliest (default: all).
@@ -85,7 +85,7 @@ pub struct DatasetOptions {
     /// firmware's frame store keeps it (1 at QVGA).
     pub depth_level: Option<u8>,
     /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
-    /// core's `Tunables::association_max_dt_s`, 0.02 s).
+    /// core's `config::ASSOCIATION_MAX_DT_S`, 0.02 s).
     pub max_dt_s: f64,
 }
 
@@ -93,11 +93,11 @@ impl Default for DatasetOptions {
     fn default() -> Self {
         Self {
             calibration: CalibrationSource::File,
-            profile: Config::default().profile,
+            profile: QVGA,
             skip_frames: 0,
             max_frames: None,
             depth_level: None,
-            max_dt_s: Tunables::default().association_max_dt_s,
+            max_dt_s: ASSOCIATION_MAX_DT_S,
         }
     }
 }
@@ -166,7 +166,7 @@ pub struct Dataset {
     groundtruth: Option<Trajectory>,
     sensor: Calibration,
     calibration: Calibration,
-    profile: Profile,
+    profile: Resolution,
     depth_level: u8,
     calibration_origin: CalibrationOrigin,
     /// The sensor's lens distortion removed from every frame; `None` for a pinhole sensor.
@@ -300,7 +300,7 @@ impl Dataset {
     }
 
     /// The processing profile.
-    pub fn profile(&self) -> Profile {
+    pub fn profile(&self) -> Resolution {
         self.profile
     }
 

@@ -3,7 +3,7 @@
 use std::fs;
 use std::path::Path;
 
-use ferroslam_core::config::{QVGA, VGA};
+use ferroslam_core::config::{QVGA, Resolution, VGA};
 use ferroslam_core::frame::FrameSource;
 use image::{ImageBuffer, Luma, LumaA, Rgb};
 
@@ -70,7 +70,7 @@ fn tum_like(dir: &Path, n: usize) {
     );
 }
 
-fn opts(profile: Profile) -> DatasetOptions {
+fn opts(profile: Resolution) -> DatasetOptions {
     DatasetOptions { profile, ..DatasetOptions::default() }
 }
 

@@ -23,7 +23,7 @@ pub mod source;
 
 use anyhow::Result;
 use ferroslam_core::backend::BackendParams;
-use ferroslam_core::config::{Profile, QVGA, Tunables};
+use ferroslam_core::config::{HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::SLAM_FRONTEND;
@@ -57,7 +57,7 @@ impl TrackMode {
     /// SLAM with the board's defaults: the firmware's quota, threaded schedule, board map and
     /// window levels (what `replay --mode slam` runs unless told otherwise).
     pub const SLAM: Self = Self::Slam {
-        quota: ferroslam_core::system::DEFAULT_BACKEND_QUOTA,
+        quota: ferroslam_core::config::DEFAULT_BACKEND_QUOTA,
         schedule: Schedule::Threaded,
         map: MapScale::Board,
         window_levels: BackendParams::DEFAULT.window_levels,
@@ -67,22 +67,23 @@ impl TrackMode {
 /// How a tracking run is set up, apart from its source and camera.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunOptions {
-    /// The processing profile: it sizes the core (QVGA: 320 x 240; VGA: 640 x 480).
-    pub profile: Profile,
+    /// The processing resolution: with the SLAM mode's map scale, it names the core's profile
+    /// (QVGA: 320 x 240; VGA: 640 x 480).
+    pub profile: Resolution,
     /// Odometry or SLAM, and SLAM's back-end settings.
     pub mode: TrackMode,
     /// The front end's RANSAC seed (`None`: the core's default, `FrontendParams::rng_seed`).
     /// Runs with other seeds show how much of an accuracy figure is chance.
     pub seed: Option<u64>,
-    /// The sensor as the core is told it (depth range, depth noise), given to the front end and
-    /// the back end.
-    pub tunables: Tunables,
+    /// The sensor's measurement model as the core is told it (depth range, noise), given to the
+    /// front end and the back end.
+    pub sensor: SensorModel,
 }
 
 impl RunOptions {
     /// `mode` at `profile` with the core's default seed and tunables.
-    pub fn new(profile: Profile, mode: TrackMode) -> Self {
-        Self { profile, mode, seed: None, tunables: Tunables::default() }
+    pub fn new(profile: Resolution, mode: TrackMode) -> Self {
+        Self { profile, mode, seed: None, sensor: SensorModel::DEFAULT }
     }
 }
 
@@ -96,7 +97,7 @@ impl Default for RunOptions {
 /// Runs every frame of `source` (about `expected` of them, for the progress bar) through the
 /// core as `options` say, with the camera `cam` at the processing resolution. The front end
 /// takes the mode's defaults (odometry: `FrontendParams::DEFAULT`; SLAM:
-/// `system::SLAM_FRONTEND` and `BackendParams::DEFAULT`) with the options' seed and tunables.
+/// `system::SLAM_FRONTEND` and `BackendParams::DEFAULT`) with the options' seed and sensor.
 ///
 /// # Errors
 /// As [`drive`]; a frame the front end rejects (size or timestamp); a back-end error.
@@ -114,10 +115,10 @@ where
         if let Some(seed) = options.seed {
             p.rng_seed = seed;
         }
-        p.with_tunables(&options.tunables)
+        p.with_sensor(options.sensor)
     };
     let (odometry, slam) = (seeded(FrontendParams::DEFAULT), seeded(SLAM_FRONTEND));
-    let mut backend = BackendParams::DEFAULT.with_tunables(&options.tunables);
+    let mut backend = BackendParams::DEFAULT.with_sensor(options.sensor);
     if let TrackMode::Slam { window_levels, .. } = options.mode {
         backend.window_levels = window_levels;
     }
@@ -129,13 +130,14 @@ where
         (TrackMode::Odometry, false) => {
             odometry::run::<320, 240, S>(source, expected, cam, odometry)
         }
-        (TrackMode::Slam { quota, schedule, map, .. }, true) => {
+        (TrackMode::Slam { quota, schedule, map, .. }, vga) => {
             let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
-            slam::run::<640, 480, S>(source, expected, cam, &setup)
-        }
-        (TrackMode::Slam { quota, schedule, map, .. }, false) => {
-            let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
-            slam::run::<320, 240, S>(source, expected, cam, &setup)
+            match (map, vga) {
+                (MapScale::Board, false) => slam::run::<Qvga, S>(source, expected, cam, &setup),
+                (MapScale::Board, true) => slam::run::<Vga, S>(source, expected, cam, &setup),
+                (MapScale::Host, false) => slam::run::<HostQvga, S>(source, expected, cam, &setup),
+                (MapScale::Host, true) => slam::run::<HostVga, S>(source, expected, cam, &setup),
+            }
         }
     }
 }

@@ -8,15 +8,15 @@ use std::collections::HashMap;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 use clap::ValueEnum;
 
 use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
-use ferroslam_core::map::{KeyFrameId, Map};
-use ferroslam_core::system::{HostScaleSlam, Slam};
-use ferroslam_core::tracking::{FrameResult, Frontend, FrontendParams, FrontendState};
+use ferroslam_core::map::KeyFrameId;
+use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
+use ferroslam_core::tracking::{FrameResult, FrontendParams, FrontendState};
 
 use super::data_path::drive;
 use super::result::{BackendReport, TrackingRun, frame_figures};
@@ -100,47 +100,19 @@ struct Relative {
     pose: Pose,
 }
 
-/// The state the front end starts a frame from (front end and map), kept while a back-end step
-/// runs beside it; boxed, as it is about 340 KB.
-struct Snapshot<const W: usize, const H: usize, const K: usize, const L: usize> {
-    frontend: Box<Frontend<W, H>>,
-    map: Box<Map<K, L>>,
-}
-
 /// The back-end step owed for the previous frame, then the front end on `frame`, under
 /// `schedule`; keyframe poses are recorded after the step.
-struct Stepper<
-    'a,
-    const W: usize,
-    const H: usize,
-    const K: usize,
-    const L: usize,
-    const LW: usize,
-    const R: usize,
-    const P: usize,
-    const O: usize,
-> {
-    slam: &'a mut Slam<W, H, K, L, LW, R, P, O>,
+struct Stepper<'a, P: ProfileTypes> {
+    slam: &'a mut Slam<P>,
     cam: &'a PinholeCamera,
     quota: u32,
     schedule: Schedule,
-    snapshot: Option<Snapshot<W, H, K, L>>,
     record: &'a mut Record,
     /// Whether a frame was tracked whose back-end step has not run yet.
     owed: bool,
 }
 
-impl<
-    const W: usize,
-    const H: usize,
-    const K: usize,
-    const L: usize,
-    const LW: usize,
-    const R: usize,
-    const P: usize,
-    const O: usize,
-> Stepper<'_, W, H, K, L, LW, R, P, O>
-{
+impl<P: ProfileTypes> Stepper<'_, P> {
     /// The back-end step alone.
     fn step(&mut self) -> Result<BackendStatus> {
         let status = self.slam.step_backend(self.cam, self.quota).map_err(backend_error)?;
@@ -149,92 +121,72 @@ impl<
     }
 
     /// The step owed for the previous frame (none before the first), then the front end on
-    /// `frame`; the step is then owed for this frame.
+    /// `frame`; the step is then owed for this frame. The step runs beside the front end when the
+    /// schedule and the core allow it ([`Slam::overlap`]).
     fn step_then_track(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
-        let owed = std::mem::replace(&mut self.owed, true);
-        let overlap = owed && self.slam.backend().is_solving();
-        let tracked = match self.schedule {
-            Schedule::Threaded if overlap => self.track_beside_solve(frame)?,
-            Schedule::Realtime if overlap => self.track_beside_realtime_solve(frame)?,
-            _ => {
-                if owed {
-                    self.step()?;
-                }
-                return Ok(self.slam.process(frame, self.cam)?);
+        if std::mem::replace(&mut self.owed, true) {
+            // A solve step leaves the map as the previous frame left it: recorded now.
+            self.record.update(self.slam);
+            let tracked = match self.schedule {
+                Schedule::Threaded => self.track_beside_solve(frame)?,
+                Schedule::Realtime => self.track_beside_realtime_solve(frame)?,
+                Schedule::Sequential => None,
+            };
+            if let Some(result) = tracked {
+                return Ok(result);
             }
-        };
-        self.slam.hand_over(&tracked);
-        Ok(tracked)
-    }
-
-    /// Writes the solve that finished beside the front end to the map.
-    fn write_back(&mut self) {
-        let (_, map, backend) = self.slam.parts_mut();
-        backend.finish_solve(map);
-        self.record.update(self.slam);
-    }
-
-    /// [`Schedule::Threaded`] while a solve is under way.
-    fn track_beside_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
-        // A step that does not finish its solve leaves the map as the previous frame left it.
-        self.record.update(self.slam);
-        let (cam, quota) = (self.cam, self.quota);
-        let (frontend, map, backend) = self.slam.parts_mut();
-        match &mut self.snapshot {
-            Some(s) => {
-                s.frontend.as_mut().clone_from(frontend);
-                s.map.as_mut().clone_from(map);
-            }
-            None => {
-                self.snapshot = Some(Snapshot {
-                    frontend: Box::new(frontend.clone()),
-                    map: Box::new(map.clone()),
-                });
-            }
+            self.step()?;
         }
+        Ok(self.slam.process(frame, self.cam)?)
+    }
+
+    /// [`Schedule::Threaded`]: the front end on `frame` with the owed solve step on another
+    /// thread, when that step cannot finish its solve (the same bits as running them in turn);
+    /// `None` when it could, or no solve is under way.
+    fn track_beside_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<Option<FrameResult>> {
+        let (cam, quota) = (self.cam, self.quota);
+        let Some((mut track, mut solve)) = self.slam.overlap(quota) else {
+            return Ok(None);
+        };
         let (solved, tracked) = std::thread::scope(|scope| {
-            let solver = scope.spawn(|| backend.advance_solve(quota));
-            let tracked = frontend.process(frame, cam, map);
+            let solver = scope.spawn(move || solve.advance(quota));
+            let tracked = track.process(frame, cam);
             (solver.join(), tracked)
         });
-        if !solve_finished(solved)? {
-            return Ok(tracked?);
+        if solve_finished(solved)? {
+            bail!("a back-end step that could not finish its solve finished it");
         }
-        // The solve finished: run in turn, the step would have written the map before this
-        // frame was tracked. Back to the frame's start, write, track again.
-        let (frontend, map, _) = self.slam.parts_mut();
-        if let Some(s) = &self.snapshot {
-            frontend.clone_from(&s.frontend);
-            map.clone_from(&s.map);
-        }
-        self.write_back();
-        let (frontend, map, _) = self.slam.parts_mut();
-        Ok(frontend.process(frame, cam, map)?)
+        Ok(Some(tracked?))
     }
 
-    /// [`Schedule::Realtime`] while a solve is under way.
-    fn track_beside_realtime_solve(&mut self, frame: &RgbdFrame<'_>) -> Result<FrameResult> {
-        self.record.update(self.slam);
+    /// [`Schedule::Realtime`]: the front end on `frame` with the solve under way advancing in
+    /// slices on another thread for as long as the front end tracks (at least one slice); a solve
+    /// it finishes is written to the map by the next frame's step. `None` when no solve is under
+    /// way.
+    fn track_beside_realtime_solve(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+    ) -> Result<Option<FrameResult>> {
         let cam = self.cam;
-        let (frontend, map, backend) = self.slam.parts_mut();
+        let Some((mut track, mut solve)) = self.slam.overlap_any() else {
+            return Ok(None);
+        };
         let tracking = AtomicBool::new(true);
         let (solved, tracked) = std::thread::scope(|scope| {
             let solver = scope.spawn(|| {
                 loop {
-                    match backend.advance_solve(REALTIME_SLICE) {
+                    match solve.advance(REALTIME_SLICE) {
                         Ok(false) if tracking.load(Ordering::Acquire) => {}
                         done => return done,
                     }
                 }
             });
-            let tracked = frontend.process(frame, cam, map);
+            let tracked = track.process(frame, cam);
             tracking.store(false, Ordering::Release);
             (solver.join(), tracked)
         });
-        if solve_finished(solved)? {
-            self.write_back();
-        }
-        Ok(tracked?)
+        solve_finished(solved)?;
+        Ok(Some(tracked?))
     }
 }
 
@@ -263,11 +215,12 @@ pub struct Setup {
     pub backend: BackendParams,
 }
 
-/// Runs `source` through a boxed `Slam<W, H>` set up by `setup`.
+/// Runs `source` through a boxed `Slam<P>` set up by `setup` (`setup.scale` must name `P`'s
+/// map: it is what the report says).
 ///
 /// # Errors
 /// As [`drive`]; a back-end error.
-pub fn run<const W: usize, const H: usize, S>(
+pub fn run<P: ProfileTypes, S>(
     source: &mut S,
     expected: usize,
     cam: &PinholeCamera,
@@ -278,54 +231,12 @@ where
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     let Setup { quota, schedule, scale, frontend, backend } = *setup;
-    match scale {
-        MapScale::Board => {
-            // The board's capacities: `Slam`'s defaults.
-            let slam: Box<Slam<W, H>> = Box::new(Slam::with_params(frontend, backend));
-            run_sized(slam, source, expected, cam, quota, schedule, scale)
-        }
-        MapScale::Host => {
-            let slam: Box<HostScaleSlam<W, H>> = Box::new(Slam::with_params(frontend, backend));
-            run_sized(slam, source, expected, cam, quota, schedule, scale)
-        }
-    }
-}
-
-/// [`run`] with the system `slam`, boxed (a megabyte or more: never on the stack).
-fn run_sized<
-    const W: usize,
-    const H: usize,
-    const K: usize,
-    const L: usize,
-    const LW: usize,
-    const R: usize,
-    const P: usize,
-    const O: usize,
-    S,
->(
-    mut slam: Box<Slam<W, H, K, L, LW, R, P, O>>,
-    source: &mut S,
-    expected: usize,
-    cam: &PinholeCamera,
-    quota: u32,
-    schedule: Schedule,
-    scale: MapScale,
-) -> Result<TrackingRun>
-where
-    S: FrameSource,
-    S::Error: std::error::Error + Send + Sync + 'static,
-{
+    // A megabyte or more: never on the stack.
+    let mut slam: Box<Slam<P>> = Box::new(Slam::with_params(frontend, backend));
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
-    let mut stepper = Stepper {
-        slam: &mut slam,
-        cam,
-        quota,
-        schedule,
-        snapshot: None,
-        record: &mut record,
-        owed: false,
-    };
+    let mut stepper =
+        Stepper { slam: &mut slam, cam, quota, schedule, record: &mut record, owed: false };
     let data = drive(source, expected, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
@@ -349,7 +260,6 @@ where
     if stepper.owed {
         stepper.step()?;
     }
-    drop(stepper);
     for _ in 0..DRAIN_STEPS {
         if !slam.backend().is_busy() {
             break;
@@ -384,7 +294,7 @@ where
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
-        state_bytes: std::mem::size_of::<Slam<W, H, K, L, LW, R, P, O>>(),
+        state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
     })
 }
@@ -404,19 +314,7 @@ struct Record {
 }
 
 impl Record {
-    fn update<
-        const W: usize,
-        const H: usize,
-        const K: usize,
-        const L: usize,
-        const LW: usize,
-        const R: usize,
-        const P: usize,
-        const O: usize,
-    >(
-        &mut self,
-        slam: &Slam<W, H, K, L, LW, R, P, O>,
-    ) {
+    fn update<P: ProfileTypes>(&mut self, slam: &Slam<P>) {
         for (id, k) in slam.map().keyframes() {
             self.keyframe_pose.insert(id, (k.timestamp_s, k.t_wc));
         }
@@ -433,17 +331,8 @@ impl Record {
     }
 }
 
-fn backend_report<
-    const W: usize,
-    const H: usize,
-    const K: usize,
-    const L: usize,
-    const LW: usize,
-    const R: usize,
-    const P: usize,
-    const O: usize,
->(
-    slam: &Slam<W, H, K, L, LW, R, P, O>,
+fn backend_report<P: ProfileTypes>(
+    slam: &Slam<P>,
     record: &Record,
     quota: u32,
     schedule: Schedule,

@@ -5,7 +5,7 @@
 use super::{Template, TrackParams};
 use crate::image::GrayView;
 use crate::matching::MatchError;
-use crate::matching::track::{
+use crate::matching::patch_tracker::{
     MAX_TRACK_COARSE_STEPS, MAX_TRACK_HALF_SIZE, MAX_TRACK_SEARCH_RADIUS,
 };
 
@@ -381,7 +381,7 @@ fn second_peak(scores: &[f32], csize: usize, best: (usize, usize)) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matching::track::test_images::noise_image;
+    use crate::matching::patch_tracker::test_images::noise_image;
 
     /// The batched, packed products equal one product per block, at the extremes of the
     /// template and pixel ranges too; too large a template is left to the single products.

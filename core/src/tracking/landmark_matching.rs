@@ -4,15 +4,15 @@
 use nalgebra::Point2;
 
 use super::frontend::{Frontend, GuideStage};
-use super::sbi::estimate_rotation;
 use super::select::{Candidate, spread};
-use super::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::Map;
 use crate::matching::{
     MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
 };
+use crate::pose::small_image_rotation::estimate_rotation;
+use crate::pose::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
 
 /// Grid the guides are spread over (columns, rows).
 const GUIDE_GRID: (usize, usize) = (4, 3);
@@ -289,7 +289,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     ) {
         self.correspondences.clear();
         self.sources.clear();
-        let (zmin, zmax) = (self.params.depth_min_m, self.params.depth_max_m);
+        let (zmin, zmax) = (self.params.sensor().depth_min_m, self.params.sensor().depth_max_m);
         // One tracking workspace for all the candidates, not one zeroed per track.
         let mut scratch = TrackScratch::new();
         for c in &self.candidates {

@@ -113,7 +113,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             let Some(desc) = lm.descriptor.filter(|_| !is_tracked(id)) else { continue };
             let p_c = t_cw * lm.p_w;
             let z = p_c.z;
-            if !(z >= self.params.depth_min_m && z <= self.params.depth_max_m) {
+            let sensor = self.params.sensor();
+            if !(z >= sensor.depth_min_m && z <= sensor.depth_max_m) {
                 continue;
             }
             let Some(uv) = cam.project(&p_c).filter(|uv| cam.in_image(uv, REACQUIRE_RADIUS_PX))

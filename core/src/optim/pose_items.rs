@@ -7,7 +7,7 @@ use nalgebra::{UnitQuaternion, Vector6};
 use super::linalg::{
     StoredPose, Vec6, dot6, sym6_add_diagonal, sym6_cholesky, sym6_diagonal, sym6_solve,
 };
-use super::passes::DIAG_FLOOR;
+use super::observation_passes::DIAG_FLOOR;
 use super::solver::BundleAdjuster;
 use crate::geometry::se3_exp;
 

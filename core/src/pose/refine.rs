@@ -122,11 +122,11 @@ impl Problem<'_> {
     #[inline(always)]
     fn terms(&self, t_cw: &Pose, c: &Correspondence) -> Option<Terms> {
         let proj = self.camera.project_world_with_pose_jacobian(t_cw, &c.p_w)?;
-        let inv_sigma = 1.0 / self.params.pixel_sigma_px;
+        let inv_sigma = 1.0 / self.params.sensor.pixel_sigma_px;
         let e = (proj.uv - c.uv) * inv_sigma;
         let j = proj.d_uv_d_xi * inv_sigma;
         let depth = c.depth_m.map(|d_m| {
-            let inv_c = 1.0 / self.params.depth_noise_coeff_per_m;
+            let inv_c = 1.0 / self.params.sensor.depth_noise_coeff_per_m;
             // Projection guarantees z > MIN_PROJECTION_DEPTH_M.
             let p = proj.p_c;
             let inv_z = 1.0 / p.z;
@@ -142,7 +142,7 @@ impl Problem<'_> {
     /// `robust` (else plain least squares, for the covariance).
     fn accumulate(&self, t_cw: &Pose, active: &InlierMask, robust: bool) -> Normal {
         let delta = if robust {
-            self.params.huber_delta_px / self.params.pixel_sigma_px
+            self.params.sensor.huber_delta_px / self.params.sensor.pixel_sigma_px
         } else {
             f32::INFINITY
         };
@@ -173,7 +173,7 @@ impl Problem<'_> {
     fn classify(&self, t_cw: &Pose) -> (InlierMask, f32) {
         let mut mask = InlierMask::new();
         let mut sum_sq_px = 0.0;
-        let sigma2 = self.params.pixel_sigma_px * self.params.pixel_sigma_px;
+        let sigma2 = self.params.sensor.pixel_sigma_px * self.params.sensor.pixel_sigma_px;
         for (i, c) in self.corrs.iter().enumerate() {
             let Some(t) = self.terms(t_cw, c) else { continue };
             let chi2 = t.e.norm_squared();
@@ -337,6 +337,7 @@ pub fn refine_pose(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::SensorModel;
     use nalgebra::{Point2, Point3, Translation3, Vector3};
 
     /// The inverse-depth and reprojection Jacobians match central differences of the residuals
@@ -344,7 +345,8 @@ mod tests {
     #[test]
     fn jacobians_match_numeric_differences() {
         let camera = PinholeCamera::new(525.0, 525.0, 319.5, 239.5, 640, 480).unwrap();
-        let params = PoseParams { depth_noise_coeff_per_m: 0.01, ..PoseParams::default() };
+        let sensor = SensorModel { depth_noise_coeff_per_m: 0.01, ..SensorModel::DEFAULT };
+        let params = PoseParams { sensor, ..PoseParams::default() };
         let corrs = [Correspondence {
             p_w: Point3::new(0.4, -0.3, 2.5),
             uv: Point2::new(300.0, 200.0),

@@ -169,7 +169,7 @@ impl Window {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matching::track::test_images::noise_image;
+    use crate::matching::patch_tracker::test_images::noise_image;
 
     /// The window's samples equal the checked ones bit for bit, on a 16 x 16 template and on a
     /// larger image; warps whose pixels do not fit a window, or leave the image, are refused.

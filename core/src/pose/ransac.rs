@@ -3,7 +3,7 @@
 
 use nalgebra::Point3;
 
-use super::pose::MIN_CORRESPONDENCES;
+use super::refine::MIN_CORRESPONDENCES;
 use super::{
     Correspondence, InlierMask, PoseError, PoseEstimate, PoseParams, refine_pose, validate_input,
 };
@@ -78,7 +78,8 @@ fn score(
     t_cw: &Pose,
     params: &PoseParams,
 ) -> InlierMask {
-    let gate_px2 = params.chi2_reprojection * (params.pixel_sigma_px * params.pixel_sigma_px);
+    let gate_px2 =
+        params.chi2_reprojection * (params.sensor.pixel_sigma_px * params.sensor.pixel_sigma_px);
     let mut mask = InlierMask::new();
     for (i, c) in corrs.iter().enumerate() {
         let Some(uv) = camera.project_world(t_cw, &c.p_w) else { continue };

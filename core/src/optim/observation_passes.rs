@@ -18,7 +18,7 @@ use super::linalg::{
 };
 use super::model::pose_row;
 use super::solver::BundleAdjuster;
-use super::state::{Budget, PointAcc};
+use super::solver_state::{Budget, PointAcc};
 
 /// Relative floor added to each diagonal entry before scaling by lambda (as tracking's), so a
 /// direction the data do not see still gets damped.
@@ -388,7 +388,8 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
                     _ => self.sweep_runs(kind, l, sweep),
                 };
                 if runs {
-                    let from = if here && sweep == cur.sweep { usize::from(cur.obs) } else { start };
+                    let from =
+                        if here && sweep == cur.sweep { usize::from(cur.obs) } else { start };
                     units += end.saturating_sub(from) as u64 + 1;
                 }
             }
@@ -396,5 +397,4 @@ impl<const R: usize, const C: usize, const P: usize, const O: usize> BundleAdjus
         }
         units
     }
-
 }

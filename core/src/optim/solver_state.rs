@@ -5,7 +5,7 @@ use super::BaParams;
 use super::Termination;
 use super::linalg::{PoseMatrix, StoredPose, Sym3, Sym6, Vec3, Vec6};
 use super::model::Model;
-use super::passes::PointCursor;
+use super::observation_passes::PointCursor;
 
 /// Damping bounds (as tracking's).
 pub(super) const LAMBDA_MIN: f32 = 1.0e-7;

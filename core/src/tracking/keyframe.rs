@@ -4,15 +4,15 @@
 use heapless::Vec;
 use nalgebra::Point2;
 
-use super::InlierMask;
 use super::frontend::Frontend;
-use super::frontend_reuse::{FEATURE_WORDS, FeatureSet, contains};
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
+use super::map_reuse::{FEATURE_WORDS, FeatureSet, contains};
 use crate::config::capacity;
 use crate::features::{Descriptor, Feature, HessianParams};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation};
+use crate::pose::InlierMask;
 
 /// Distance of the neighbours checked for depth discontinuities around a new landmark, pixels.
 const DISCONTINUITY_RADIUS_PX: usize = 2;
@@ -218,7 +218,7 @@ fn landmark_depth(
     let z = frame
         .depth
         .depth_at(f.x, f.y, p.max_relative_depth_step)
-        .filter(|&z| z >= p.depth_min_m && z <= p.depth_max_m)?;
+        .filter(|&z| z >= p.sensor().depth_min_m && z <= p.sensor().depth_max_m)?;
     let r = DISCONTINUITY_RADIUS_PX;
     let neighbours = [(x + r, y), (x.wrapping_sub(r), y), (x, y + r), (x, y.wrapping_sub(r))];
     for (nx, ny) in neighbours {

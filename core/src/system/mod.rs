@@ -1,0 +1,206 @@
+//! The facade: [`Slam::process`] runs the front end on a frame, [`Slam::step_backend`] advances
+//! the back end by a bounded amount of work. The caller schedules the two: on the firmware the
+//! back end runs between frames, in turn with the front end. With a fixed quota per frame the
+//! result is the same bits however the steps fall in time.
+//!
+//! The back end's solve may also run while the front end tracks the next frame:
+//! [`Slam::overlap`] lends the front end with the map as a [`FrameJob`] and the back end as a
+//! [`SolveJob`], the two borrowed apart, when the solve step cannot finish within the frame's
+//! quota. Such a step reads no map, writes none and finishes nothing, so tracking beside it gives
+//! the same bits as [`Slam::step_backend`] then [`Slam::process`]. A host runs the job on
+//! another thread (the paper's parallel back end); a board could run it as a lower-priority task
+//! between frame interrupts. A keyframe the frame job makes reaches the back end at the next
+//! call that steps it.
+//!
+//! A [`Slam`] is sized by its profile ([`crate::config::Profile`]): [`QvgaSlam`] is the board's.
+//!
+//! ```
+//! use ferroslam_core::system::{MapAccess, QvgaSlam};
+//! // About 350 KB: give it a `static` on a board, a box on a host.
+//! let slam: Box<QvgaSlam> = Box::default();
+//! assert_eq!(slam.map().num_keyframes(), 0);
+//! ```
+
+mod profile;
+mod telemetry;
+
+use crate::backend::{BackendError, BackendParams, BackendStatus};
+use crate::frame::RgbdFrame;
+use crate::geometry::PinholeCamera;
+use crate::map::KeyFrameId;
+use crate::tracking::{FrameResult, FrontendError, FrontendParams};
+
+pub use crate::backend::SolveJob;
+pub use crate::config::{DEFAULT_BACKEND_QUOTA, HostQvga, HostVga, Qvga, Vga};
+pub use profile::{Adjuster, MapAccess, ProfileTypes, Tracker};
+
+/// SLAM at the reference board's profile ([`Qvga`]: 320 x 240, the board's map).
+pub type QvgaSlam = Slam<Qvga>;
+/// SLAM at full resolution with the board's map ([`Vga`]).
+pub type VgaSlam = Slam<Vga>;
+
+/// The front end's parameters in SLAM mode: [`FrontendParams::DEFAULT`] without depth fusion
+/// (bundle adjustment refines landmark positions instead). Why: `docs/decisions.md`, "No depth
+/// fusion in SLAM mode".
+pub const SLAM_FRONTEND: FrontendParams =
+    FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
+
+/// The front end, the map and the back end at profile `P` (see the module documentation).
+#[derive(Debug)]
+pub struct Slam<P: ProfileTypes> {
+    frontend: P::Frontend,
+    map: P::Map,
+    backend: P::Backend,
+    /// A keyframe a [`FrameJob`] made, with its creation number, not yet told to the back end.
+    new_keyframe: Option<(KeyFrameId, u32)>,
+}
+
+impl<P: ProfileTypes> Default for Slam<P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<P: ProfileTypes> Slam<P> {
+    /// A system with [`SLAM_FRONTEND`] and [`BackendParams::DEFAULT`] (`const`, for a
+    /// `static`).
+    pub const fn new() -> Self {
+        P::NEW
+    }
+
+    /// A system with the given parameters.
+    pub fn with_params(frontend: FrontendParams, backend: BackendParams) -> Self {
+        let (frontend, map, backend) = P::start(frontend, backend);
+        Self::from_parts(frontend, map, backend)
+    }
+
+    /// A system of these parts, with no keyframe waiting for the back end.
+    const fn from_parts(frontend: P::Frontend, map: P::Map, backend: P::Backend) -> Self {
+        Self { frontend, map, backend, new_keyframe: None }
+    }
+
+    /// Tracks one frame and hands a new keyframe to the back end (see
+    /// [`Frontend::process`](crate::tracking::Frontend::process)).
+    ///
+    /// # Errors
+    /// As `Frontend::process`; nothing changes then.
+    pub fn process(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Result<FrameResult, FrontendError> {
+        self.tell_backend();
+        let result = self.frame_job().process(frame, cam);
+        self.tell_backend();
+        result
+    }
+
+    /// Advances the back end by at most about `work_quota` units (see
+    /// [`Backend::step`](crate::backend::Backend::step)).
+    ///
+    /// # Errors
+    /// As `Backend::step`.
+    pub fn step_backend(
+        &mut self,
+        cam: &PinholeCamera,
+        work_quota: u32,
+    ) -> Result<BackendStatus, BackendError> {
+        self.tell_backend();
+        self.backend.step(&mut self.map, cam, work_quota)
+    }
+
+    /// The front end with the map, and the back end's solve, borrowed apart for one frame: `Some`
+    /// when the back end's next step is a solve step that cannot finish the solve within
+    /// `work_quota` units. Then [`SolveJob::advance`]`(work_quota)` beside
+    /// [`FrameJob::process`] gives the same bits as [`Self::step_backend`]`(cam, work_quota)`
+    /// followed by [`Self::process`]. `None`: run those two in turn. Cost: one pass over the
+    /// solve's points.
+    pub fn overlap(&mut self, work_quota: u32) -> Option<(FrameJob<'_, P>, SolveJob<'_>)> {
+        self.tell_backend();
+        let solve = self.backend.solve_job()?;
+        if solve.units_before_finish() <= u64::from(work_quota) {
+            return None;
+        }
+        let frame = FrameJob {
+            frontend: &mut self.frontend,
+            map: &mut self.map,
+            new_keyframe: &mut self.new_keyframe,
+        };
+        Some((frame, solve))
+    }
+
+    /// As [`Self::overlap`], whenever a solve is under way and whatever work it has left: for a
+    /// caller that solves for as long as the front end tracks (not deterministic). A solve the
+    /// job finishes is written to the map by the next [`Self::step_backend`].
+    pub fn overlap_any(&mut self) -> Option<(FrameJob<'_, P>, SolveJob<'_>)> {
+        self.tell_backend();
+        let solve = self.backend.solve_job()?;
+        let frame = FrameJob {
+            frontend: &mut self.frontend,
+            map: &mut self.map,
+            new_keyframe: &mut self.new_keyframe,
+        };
+        Some((frame, solve))
+    }
+
+    /// The map.
+    pub fn map(&self) -> &P::Map {
+        &self.map
+    }
+
+    /// The front end.
+    pub fn frontend(&self) -> &P::Frontend {
+        &self.frontend
+    }
+
+    /// The back end.
+    pub fn backend(&self) -> &P::Backend {
+        &self.backend
+    }
+
+    /// The front end with the map, as a job.
+    fn frame_job(&mut self) -> FrameJob<'_, P> {
+        FrameJob {
+            frontend: &mut self.frontend,
+            map: &mut self.map,
+            new_keyframe: &mut self.new_keyframe,
+        }
+    }
+
+    /// Tells the back end of the keyframe the last frame job made, if any.
+    fn tell_backend(&mut self) {
+        if let Some((kf, seq)) = self.new_keyframe.take() {
+            self.backend.keyframe_added(kf, seq);
+        }
+    }
+}
+
+/// The front end with the map, borrowed for one frame ([`Slam::overlap`]): what
+/// [`Slam::process`] does, apart from the back end.
+#[derive(Debug)]
+pub struct FrameJob<'a, P: ProfileTypes> {
+    frontend: &'a mut P::Frontend,
+    map: &'a mut P::Map,
+    new_keyframe: &'a mut Option<(KeyFrameId, u32)>,
+}
+
+impl<P: ProfileTypes> FrameJob<'_, P> {
+    /// Tracks one frame into the map (see
+    /// [`Frontend::process`](crate::tracking::Frontend::process)); a keyframe it makes is told to
+    /// the back end by the next [`Slam`] call that steps it.
+    ///
+    /// # Errors
+    /// As `Frontend::process`; nothing changes then.
+    pub fn process(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Result<FrameResult, FrontendError> {
+        let result = self.frontend.process(frame, cam, self.map)?;
+        let made = result.keyframe.and_then(|kf| self.map.keyframe(kf).map(|k| (kf, k.seq)));
+        if made.is_some() {
+            *self.new_keyframe = made;
+        }
+        Ok(result)
+    }
+}
