@@ -303,3 +303,36 @@ fn window_levels_reach_the_back_end_and_zero_is_refused() {
     assert_eq!(run.status.code(), Some(2));
     assert!(stderr(&run).contains("--window-levels"), "{}", stderr(&run));
 }
+
+#[test]
+fn calibrate_depth_has_help_naming_its_options() {
+    let run = sim(&["calibrate-depth", "--help"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let help = String::from_utf8_lossy(&run.stdout);
+    for option in ["<DATASET>", "--out <FILE>", "--check <FILE>", "--start <N>", "--step <N>"] {
+        assert!(help.contains(option), "--help names {option}: {help}");
+    }
+}
+
+#[test]
+fn calibrate_depth_of_a_missing_dataset_fails_clearly() {
+    let out = tempfile::tempdir().unwrap();
+    let file = out.path().join("cal.toml");
+    let missing = out.path().join("no-such-dataset");
+    let run = sim(&["calibrate-depth", missing.to_str().unwrap(), "--out", file.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(1));
+    let msg = stderr(&run);
+    assert!(msg.contains("no-such-dataset is not a dataset folder"), "{msg}");
+    assert!(!msg.contains("panicked"), "{msg}");
+    assert!(!file.exists(), "nothing is written");
+    // A folder without calibration.toml says what the estimate needs.
+    let run =
+        sim(&["calibrate-depth", out.path().to_str().unwrap(), "--out", file.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(stderr(&run).contains("has no calibration.toml"), "{}", stderr(&run));
+    // Neither --out nor --check, or a step of 0: usage errors.
+    let run = sim(&["calibrate-depth", missing.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let run = sim(&["calibrate-depth", "x", "--out", "y", "--step", "0"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+}

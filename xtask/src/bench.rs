@@ -46,7 +46,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use serde_json::{Value, json};
 
-use crate::ci::{SEVEN_SCENES, root};
+use crate::paths::{SEVEN_SCENES, root};
 use crate::stats::{Stats, thousands};
 
 /// The front end's stages: `(name, pattern)`, in print order. This table is the one place to
@@ -253,7 +253,7 @@ fn run_callgrind(root: &Path, opts: &Options, dump_dir: &Path, replay_dir: &Path
         "--mode".to_owned(),
         "odometry".to_owned(),
     ];
-    if let Some(c) = crate::ci::calibration_for(&opts.dataset) {
+    if let Some(c) = crate::paths::calibration_for(&opts.dataset) {
         // The registered calibration of 7-Scenes, as CI replays it.
         args.extend(["--calibration".to_owned(), c.display().to_string()]);
     }

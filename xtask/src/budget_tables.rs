@@ -11,7 +11,7 @@ use anyhow::Result;
 use ferroslam_core::tracking::FrontendWork;
 
 use crate::budget_doc::{replace_region, write_measured};
-use crate::budgets::{Check, Measurements, VGA_DOES_NOT_RUN, show};
+use crate::budget_figures::{Check, Measurements, VGA_DOES_NOT_RUN, show};
 use crate::cost::{FrameCost, describe_work};
 use crate::stats::{Stats, millions, thousands};
 
@@ -138,7 +138,7 @@ fn binaries_table(m: &Measurements) -> String {
         names.join(" | "),
         " ---: |".repeat(names.len())
     );
-    let mut row = |label: &str, cell: &dyn Fn(&crate::budgets::Binary) -> String| {
+    let mut row = |label: &str, cell: &dyn Fn(&crate::budget_figures::Binary) -> String| {
         let cells: Vec<String> = m.binaries.iter().map(cell).collect();
         let _ = writeln!(s, "| {label} | {} |", cells.join(" | "));
     };

@@ -1,53 +1,16 @@
-//! The CI pipeline: each step runs a command and stops the run at the first failure.
+//! The CI pipeline: each step runs a command and stops the run at the first failure. It sits on
+//! top of xtask: it uses the other modules, and none of them imports it (the paths they share
+//! are in `paths`, the host replays in `sim`).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use ferroslam_sim::dataset::calibrate_depth::{self, FrameSelection};
 
-/// The cross target of the reference board (Cortex-M4F/M7F with single-precision FPU).
-pub const THUMB: &str = "thumbv7em-none-eabihf";
-
-/// The real recording every CI run replays.
-pub const SEVEN_SCENES: &str = "../shared/datasets/7scenes-redkitchen-1000";
-/// The calibration every 7-Scenes replay uses, relative to the workspace root: the colour
-/// camera's intrinsics and the depth camera's offset, so that depth is registered to colour
-/// (the data set's own `calibration.toml` holds the depth camera's nominal intrinsics only; see
-/// the file's header for how its values were estimated).
-pub const SEVEN_SCENES_CALIBRATION: &str = "calibration/7scenes-kinect-v1.toml";
-
-/// The calibration file xtask replays `dataset` with: [`SEVEN_SCENES_CALIBRATION`] for the
-/// 7-Scenes folder (however it is named: the check compares canonical paths), `None` (the
-/// folder's own `calibration.toml`) for any other.
-pub fn calibration_for(dataset: &Path) -> Option<PathBuf> {
-    let seven = std::fs::canonicalize(root().join(SEVEN_SCENES)).ok()?;
-    (std::fs::canonicalize(dataset).ok()? == seven).then(|| root().join(SEVEN_SCENES_CALIBRATION))
-}
-
-/// The workspace root: xtask lives in `<root>/xtask`.
-pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
-}
-
-/// Runs `program args...` in the workspace root with extra environment, failing on non-zero exit.
-fn run(program: &str, args: &[&str], env: &[(&str, &str)]) -> Result<()> {
-    let mut cmd = Command::new(program);
-    cmd.args(args).current_dir(root());
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    eprintln!("$ {program} {}", args.join(" "));
-    let status = cmd.status().with_context(|| format!("could not start {program}"))?;
-    if !status.success() {
-        bail!("`{program} {}` failed with {status}", args.join(" "));
-    }
-    Ok(())
-}
-
-fn cargo(args: &[&str]) -> Result<()> {
-    run(env!("CARGO"), args, &[])
-}
+use crate::cargo::{cargo, cargo_with_env};
+use crate::paths::{SEVEN_SCENES, SEVEN_SCENES_CALIBRATION, THUMB, ci_out, root};
+use crate::sim::replay_with_bar;
 
 /// One named step of the pipeline, timed.
 fn step(name: &str, f: impl FnOnce() -> Result<()>) -> Result<()> {
@@ -83,8 +46,7 @@ pub fn run_all() -> Result<()> {
         ])
     })?;
     step("docs", || {
-        run(
-            env!("CARGO"),
+        cargo_with_env(
             &[
                 "doc",
                 "--no-deps",
@@ -107,9 +69,7 @@ pub fn run_all() -> Result<()> {
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
-    step("7-Scenes depth calibration follows from the images", || {
-        crate::registration::check_file(root().join(SEVEN_SCENES_CALIBRATION))
-    })?;
+    step("7-Scenes depth calibration follows from the images", seven_scenes_calibration)?;
     step("7-Scenes replays (odometry, SLAM), accuracy bars", replay_seven_scenes_both)?;
     step("held-out TUM sequences (issue 4's 0.010 m bar), when present", || {
         crate::heldout::run(&[])
@@ -174,7 +134,7 @@ fn firmware_replay() -> Result<()> {
 
 /// Where CI's firmware replay writes (`cost.json` among the rest), read again by [`budgets`].
 fn firmware_replay_dir() -> PathBuf {
-    root().join("target").join("ci").join("firmware-replay")
+    ci_out("firmware-replay")
 }
 
 /// The budgets of `memory-budget.md` on the firmware replay's `cost.json`, without a second QEMU
@@ -182,7 +142,7 @@ fn firmware_replay_dir() -> PathBuf {
 fn budgets() -> Result<()> {
     let opts = crate::budgets::Options {
         from: Some(firmware_replay_dir()),
-        json: Some(root().join("target").join("ci").join("budgets.json")),
+        json: Some(ci_out("budgets.json")),
         ..crate::budgets::Options::new(&root())
     };
     crate::budgets::run_with(&root(), &opts)
@@ -205,7 +165,7 @@ const SEVEN_SCENES_SLAM_BAR_M: f64 = 0.050;
 /// Replays 7-Scenes at QVGA in `mode` into `target/ci/replay-7scenes-<mode>`, checks that all
 /// 1000 frames were tracked and the ATE RMSE is within `bar_m`, and returns the ATE.
 fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
-    let out = root().join(format!("target/ci/replay-7scenes-{mode}"));
+    let out = ci_out(&format!("replay-7scenes-{mode}"));
     let dataset = root().join(SEVEN_SCENES);
     let calibration = root().join(SEVEN_SCENES_CALIBRATION);
     let (frames, ate) =
@@ -216,49 +176,6 @@ fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
     Ok(ate)
 }
 
-/// Replays `dataset` (with `calibration`, else its own) at QVGA from its first frame in `mode`
-/// into `out`; fails when a frame was not tracked or the ATE RMSE is over `bar_m` (when given).
-/// Returns the frames processed and the ATE RMSE in metres; `label` names the data in messages.
-pub fn replay_with_bar(
-    label: &str,
-    dataset: &Path,
-    calibration: Option<&Path>,
-    mode: &str,
-    bar_m: Option<f64>,
-    out: &Path,
-) -> Result<(u64, f64)> {
-    let (dataset, out_arg) = (dataset.to_string_lossy(), out.to_string_lossy());
-    let calibration = calibration.map(Path::to_string_lossy);
-    let mut args = vec!["run", "--release", "-p", "ferroslam-sim", "--", "replay", &dataset];
-    if let Some(c) = &calibration {
-        args.extend(["--calibration", c]);
-    }
-    args.extend(["--out", &out_arg, "--mode", mode, "--profile", "qvga"]);
-    cargo(&args)?;
-    let report = read_report(out)?;
-    let count =
-        |key: &str| report[key].as_u64().with_context(|| format!("report.json has no count {key}"));
-    let (frames, tracked) = (count("frames")?, count("tracked_frames")?);
-    let ate = report["ate_rmse_m"].as_f64().context("report.json has no ate_rmse_m")?;
-    let bar = bar_m.map_or_else(|| "no bar".to_string(), |b| format!("bar {b:.3} m"));
-    eprintln!("{label} {mode}: {frames} frames, {tracked} tracked, ATE RMSE {ate:.4} m ({bar})");
-    if frames == 0 || tracked != frames {
-        bail!("{label} {mode}: {frames} frames processed and {tracked} tracked; all must be");
-    }
-    if let Some(bar_m) = bar_m.filter(|b| ate > *b) {
-        bail!("{label} {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m:.3} m");
-    }
-    Ok((frames, ate))
-}
-
-/// The `report.json` a `ferroslam-sim replay --out dir` wrote.
-pub fn read_report(dir: &Path) -> Result<serde_json::Value> {
-    let path = dir.join("report.json");
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("reading {} (did the replay write it?)", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
-}
-
 /// The odometry and SLAM replays of 7-Scenes with their bars, and SLAM better than odometry.
 fn replay_seven_scenes_both() -> Result<()> {
     let odometry = replay_seven_scenes("odometry", SEVEN_SCENES_ODOMETRY_BAR_M)?;
@@ -266,5 +183,20 @@ fn replay_seven_scenes_both() -> Result<()> {
     if slam >= odometry {
         bail!("7-Scenes: SLAM ({slam:.4} m) is not better than odometry ({odometry:.4} m)");
     }
+    Ok(())
+}
+
+/// `ferroslam-sim calibrate-depth --check` of [`SEVEN_SCENES_CALIBRATION`], in process: the
+/// estimate from frames 0, 25, ... of 7-Scenes must match the file within the check's tolerances,
+/// which proves the file still follows from the images (loader, registration and estimator
+/// unchanged in effect).
+fn seven_scenes_calibration() -> Result<()> {
+    let file = root().join(SEVEN_SCENES_CALIBRATION);
+    let estimate =
+        calibrate_depth::estimate(&root().join(SEVEN_SCENES), FrameSelection::default())?;
+    let check = estimate.compare_file(&file)?;
+    eprint!("{check}");
+    check.ensure()?;
+    eprintln!("{}: every value within tolerance of the estimate", file.display());
     Ok(())
 }

@@ -13,8 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 
-/// The Cortex-M target the firmware is built for.
-pub const THUMB: &str = "thumbv7em-none-eabihf";
+use crate::paths::THUMB;
 
 /// The firmware binaries.
 pub const BINARIES: [&str; 2] = ["qemu-mps2", "ref-board"];

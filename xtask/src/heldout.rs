@@ -28,7 +28,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use crate::ci::{SEVEN_SCENES, calibration_for, replay_with_bar, root};
+use crate::paths::{SEVEN_SCENES, calibration_for, ci_out, root};
+use crate::sim::replay_with_bar;
 
 /// Issue 4's bar on the held-out TUM sequence: the SLAM mode's ATE RMSE, metres.
 pub const HELDOUT_SLAM_BAR_M: f64 = 0.010;
@@ -78,9 +79,7 @@ fn check(dir: &Path) -> Result<()> {
         .with_context(|| format!("held-out dataset {} is not a folder here", dir.display()))?;
     let name = dir.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let calibration = calibration_for(&dir);
-    let out = |mode: &str| {
-        root().join("target").join("ci").join("heldout").join(format!("{name}-{mode}"))
-    };
+    let out = |mode: &str| ci_out("heldout").join(format!("{name}-{mode}"));
     let label = format!("held-out {name}");
     let (_, odometry) =
         replay_with_bar(&label, &dir, calibration.as_deref(), "odometry", None, &out("odometry"))?;

@@ -25,27 +25,38 @@
 //!   [-- REPLAY ARGS]`:
 //!   the ATE of the odometry and SLAM replays over several RANSAC seeds and start frames (mean,
 //!   median, range), to tell a real accuracy change from a lucky run; see `spread.rs`.
-//! - `calibrate-depth [--dataset DIR] [--start N] [--step N] [--check FILE]`: estimates the
-//!   colour intrinsics and the depth camera's offset of a recording whose depth is not registered
-//!   to colour, from the images, and prints a calibration file
-//!   (`calibration/7scenes-kinect-v1.toml` came from it; `--check FILE` compares the estimate
-//!   with a file instead, as `ci` does); see `registration.rs`.
 //! - `heldout [--dataset DIR]...`: issue 4's 0.010 m bar on a real TUM sequence kept aside from
 //!   tuning, with SLAM better than odometry (default: every recording with ground truth in
 //!   `../shared/datasets` other than 7-Scenes; `ci` runs it, and says when there is none); see
 //!   `heldout.rs`.
+//!
+//! The depth-to-colour calibration estimator that `calibration/7scenes-kinect-v1.toml` came from
+//! is a host-sim command, `ferroslam-sim calibrate-depth DATASET --out FILE` (it was `cargo xtask
+//! calibrate-depth`); `ci` runs its check in process.
+//!
+//! Modules, top down (no module imports one above it): `main` parses the subcommand; `ci` runs
+//! the pipeline and nothing imports it; each other subcommand has its module (`budgets`,
+//! `profile`, `heldout`, `spread`, `bench`, and `replay`, the firmware replay that `budgets`,
+//! `profile` and `ci` run too), over the pieces they share: `budget_tables` and `budget_doc`
+//! (`memory-budget.md`), `budget_figures` (what `budgets` measures and judges), `sim`
+//! (`ferroslam-sim replay` and its report), `cost` (a firmware run's per-frame costs), `firmware`
+//! (building it, running QEMU), `cargo` (running cargo), `stats`, and `paths` (the workspace
+//! root, the 7-Scenes recording and its calibration, the output folders) at the bottom.
 
 mod bench;
 mod budget_doc;
+mod budget_figures;
 mod budget_tables;
 mod budgets;
+mod cargo;
 mod ci;
 mod cost;
 mod firmware;
 mod heldout;
+mod paths;
 mod profile;
-mod registration;
 mod replay;
+mod sim;
 mod spread;
 mod stats;
 
@@ -56,14 +67,14 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("ci") => ci::run_all(),
         Some("firmware-replay") => {
-            let out = ci::root().join("target").join("xtask").join("firmware-replay");
-            replay::ReplayOptions::parse(&args[1..], out).and_then(|o| replay::run(&ci::root(), &o))
+            let out = paths::xtask_out("firmware-replay");
+            replay::ReplayOptions::parse(&args[1..], out)
+                .and_then(|o| replay::run(&paths::root(), &o))
         }
         Some("bench-frontend") => bench::run(&args[1..]),
         Some("budgets") => budgets::run(&args[1..]),
         Some("profile-firmware") => profile::run(&args[1..]),
         Some("spread") => spread::run(&args[1..]),
-        Some("calibrate-depth") => registration::run(&args[1..]),
         Some("heldout") => heldout::run(&args[1..]),
         _ => {
             eprintln!(
@@ -74,8 +85,8 @@ fn main() -> ExitCode {
                  profile-firmware [--dataset DIR] [--frames N] [--top K] [--out DIR] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE] [-- REPLAY ARGS] | calibrate-depth [--dataset DIR] [--start N] \
-                 [--step N] [--check FILE] | heldout [--dataset DIR]...>"
+                 [--json FILE] [-- REPLAY ARGS] | heldout [--dataset DIR]...> \
+                 (the depth calibration estimator is `ferroslam-sim calibrate-depth`)"
             );
             return ExitCode::from(2);
         }

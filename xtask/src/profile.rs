@@ -29,9 +29,9 @@ use std::process::Command;
 
 use anyhow::{Context, Result, anyhow, bail};
 
-use crate::ci::{SEVEN_SCENES, calibration_for, root};
 use crate::cost::FirmwareRun;
 use crate::firmware;
+use crate::paths::{SEVEN_SCENES, calibration_for, root};
 use crate::replay::{self, ReplayOptions};
 
 /// Options of `profile-firmware`.

@@ -56,7 +56,7 @@ pub struct ReplayOptions {
     /// The TUM-layout dataset folder.
     pub dataset: PathBuf,
     /// A calibration file instead of the folder's `calibration.toml` (`--calibration FILE`;
-    /// default [`crate::ci::calibration_for`] the dataset).
+    /// default [`crate::paths::calibration_for`] the dataset).
     pub calibration: Option<PathBuf>,
     /// Frames to run (the earliest).
     pub max_frames: usize,
@@ -94,7 +94,7 @@ impl ReplayOptions {
                 "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--out DIR]"
             )
         })?;
-        let calibration = calibration.or_else(|| crate::ci::calibration_for(&dataset));
+        let calibration = calibration.or_else(|| crate::paths::calibration_for(&dataset));
         if max_frames == 0 {
             bail!("--max-frames must be at least 1");
         }

@@ -23,7 +23,7 @@
 //!
 //! - `--dataset`: a TUM-layout folder (default: 7-Scenes, `../shared/datasets/...`).
 //! - `--calibration`: a calibration file instead of the folder's (default: for 7-Scenes the
-//!   registered calibration CI replays with, [`crate::ci::SEVEN_SCENES_CALIBRATION`]; for any
+//!   registered calibration CI replays with, [`crate::paths::SEVEN_SCENES_CALIBRATION`]; for any
 //!   other folder its own).
 //! - `--seeds N`: the core's default RANSAC seed and the seeds `1..N` (default 0: the default
 //!   seed alone).
@@ -50,7 +50,8 @@ use anyhow::{Context, Result, bail};
 use ferroslam_sim::eval::ErrorStats;
 use serde_json::json;
 
-use crate::ci::{SEVEN_SCENES, read_report, root};
+use crate::paths::{SEVEN_SCENES, root};
+use crate::sim::read_report;
 
 /// Options of `spread`.
 #[derive(Debug, Clone)]
@@ -288,7 +289,7 @@ fn parse_args(args: &[String]) -> Result<Options> {
         }
     } else {
         opts.dataset = dataset.unwrap_or(opts.dataset);
-        opts.calibration = calibration.or_else(|| crate::ci::calibration_for(&opts.dataset));
+        opts.calibration = calibration.or_else(|| crate::paths::calibration_for(&opts.dataset));
     }
     if opts.skips.is_empty() {
         opts.skips = if opts.demo {

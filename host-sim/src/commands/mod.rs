@@ -7,11 +7,14 @@
 //!                      [--preset tum1|tum2|tum3] [--max-frames N]
 //! ferroslam-sim eval GROUNDTRUTH ESTIMATE [--json]     ATE/RPE, evo-compatible
 //! ferroslam-sim decode-serial FILE [--tum]             the firmware's UART capture: poses, losses
+//! ferroslam-sim calibrate-depth DATASET --out FILE [--check FILE] [--start N] [--step N]
+//!                                                       depth-to-colour registration, from the images
 //! ```
 //! Every error is printed with its causes (file and line where there is one) and the process exits
 //! with status 1; usage errors exit with status 2.
 
 pub mod args;
+pub mod calibrate_depth;
 pub mod decode_serial;
 pub mod demo;
 pub mod replay;
@@ -43,6 +46,10 @@ enum Command {
     /// Decode a capture of the firmware's UART: poses, other messages, frames dropped and bytes
     /// skipped.
     DecodeSerial(decode_serial::DecodeSerialArgs),
+    /// Estimate the depth-to-colour registration of a sensor whose depth is not registered to
+    /// colour (the colour intrinsics and the depth camera's offset), from the images; write it as
+    /// a calibration file, or check one.
+    CalibrateDepth(calibrate_depth::CalibrateDepthArgs),
 }
 
 /// Arguments of `eval`.
@@ -85,6 +92,7 @@ pub fn main() -> ExitCode {
         Command::Replay(args) => replay::run(args),
         Command::Eval(args) => run_eval(args),
         Command::DecodeSerial(args) => decode_serial::run(args),
+        Command::CalibrateDepth(args) => calibrate_depth::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

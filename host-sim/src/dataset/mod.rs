@@ -10,7 +10,9 @@
 //! which listed images exist, associates colour to depth by timestamp and validates the
 //! calibration; it decodes nothing. Frames are decoded one at a time with
 //! [`Dataset::load_frame`], or ahead of the pipeline on another thread by a [`DatasetReader`],
-//! which implements the core's [`ferroslam_core::frame::FrameSource`] port.
+//! which implements the core's [`ferroslam_core::frame::FrameSource`] port. For a sensor whose
+//! depth is not registered to colour, [`calibrate_depth`] estimates the `[depth]` table from the
+//! images (`ferroslam-sim calibrate-depth`).
 //!
 //! Policy for what real TUM sequences contain:
 //! - a listed image that is not on disk is skipped, not fatal: it is left out before association
@@ -27,6 +29,7 @@
 //! the calibration) is a [`DatasetError`] naming the file and, for lists, the 1-based line.
 
 mod associate;
+pub mod calibrate_depth;
 mod calibration;
 mod decode;
 mod error;

@@ -37,6 +37,7 @@
 //! every transcendental function goes through `libm`, so the output is bit-identical across runs,
 //! machines and thread counts.
 
+mod face;
 mod path;
 mod poster;
 mod render;

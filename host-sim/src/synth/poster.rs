@@ -5,8 +5,8 @@
 //! frame. Its content is drawn in poster coordinates `(x, y)`: metres from the lower-left corner,
 //! `x` to the right, `y` up.
 
+use super::face::FaceId;
 use super::rng::SplitMix64;
-use super::scene::FaceId;
 use super::texture::{fbm, floor, hash2};
 
 /// Albedo of poster paper.

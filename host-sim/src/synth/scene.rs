@@ -12,9 +12,10 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::face::FaceId;
 use super::poster::{Poster, PosterKind};
 use super::rng::SplitMix64;
-use super::texture::{Material, hash2};
+use super::texture::Material;
 
 /// Minimum of the room's interior in world coordinates (metres).
 pub const ROOM_MIN: [f64; 3] = [-3.0, -3.5, 0.0];
@@ -27,29 +28,6 @@ const AMBIENT: f64 = 0.42;
 const DIFFUSE: f64 = 0.62;
 /// Hits closer than this along the ray (in ray parameter units) are ignored.
 const T_MIN: f64 = 1e-9;
-
-/// Which face of which object a ray hit. Face index `k`: axis `k / 2` (x, y, z), the minimum side
-/// for even `k`, the maximum for odd `k` (box-local axes for boxes).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum FaceId {
-    /// A face of the room: 0 west, 1 east, 2 south, 3 north wall, 4 floor, 5 ceiling.
-    Room(u8),
-    /// Face `face` of box `index`.
-    Box { index: u8, face: u8 },
-    /// Sphere `index`.
-    Sphere(u8),
-}
-
-impl FaceId {
-    /// A per-face salt for the texture hashes.
-    fn salt(self) -> u32 {
-        match self {
-            Self::Room(f) => hash2(0, i32::from(f), 0xA11),
-            Self::Box { index, face } => hash2(i32::from(index) + 1, i32::from(face), 0xB0C),
-            Self::Sphere(i) => hash2(i32::from(i), -7, 0x5F),
-        }
-    }
-}
 
 /// A ray hit.
 #[derive(Debug, Clone, Copy, PartialEq)]
