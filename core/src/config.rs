@@ -6,7 +6,8 @@
 //! pipeline runs: [`QVGA`] on the reference board (Cortex-M7F, 1 MB SRAM), [`VGA`] on the host.
 
 /// Capacities that size the core's fixed arrays. Changing one changes RAM use: see
-/// `memory-budget.md`, which CI checks.
+/// `memory-budget.md`, which CI checks. Why the map's are what they are: docs/decisions.md,
+/// "Board RAM: depth level, map and BA capacities".
 pub mod capacity {
     /// Widest image the core accepts, in pixels (the sensor's VGA width).
     pub const MAX_WIDTH: usize = 640;
@@ -61,9 +62,8 @@ impl Profile {
 /// halved once more, to 160x120 (level 1).
 ///
 /// The coarser depth is what lets the board's RAM budget hold a map: it keeps 38,400 bytes of
-/// depth instead of 153,600. Measured against level 0 (memory-budget.md has the figures): on
-/// 7-Scenes it costs no accuracy, as the sensor's own depth is not sharper than that; on the
-/// demo's exact synthetic depth, odometry is unchanged and SLAM loses a little.
+/// depth instead of 153,600. Why: docs/decisions.md, "Board RAM: depth level, map and BA
+/// capacities".
 pub const QVGA: Profile = Profile { name: "qvga", downsample_levels: 1, depth_level: 1 };
 
 /// The full-resolution profile for hosts with memory to spare (depth at full resolution too).
@@ -103,8 +103,8 @@ pub struct Tunables {
     /// [`PoseParams::depth_noise_coeff_per_m`]: crate::tracking::PoseParams::depth_noise_coeff_per_m
     pub depth_noise_coeff_per_m: f32,
     /// The same coefficient as bundle adjustment weighs a keyframe's depth observation, in 1/m.
-    /// Default [`BA_DEPTH_NOISE_COEFF_PER_M`], 6e-4 whatever the sensor, measured (its docs say
-    /// why it differs from the tracker's).
+    /// Default [`BA_DEPTH_NOISE_COEFF_PER_M`], 6e-4 whatever the sensor (why it differs from the
+    /// tracker's: docs/decisions.md, "Bundle adjustment depth weight").
     ///
     /// [`BA_DEPTH_NOISE_COEFF_PER_M`]: crate::backend::BA_DEPTH_NOISE_COEFF_PER_M
     pub ba_depth_noise_coeff_per_m: f32,
