@@ -56,8 +56,8 @@
 //! board's map. The paper's window of 50-65 keyframes in a map of over 120 is an option: the
 //! host-scale map with `window_levels` 255 and a larger quota (`--map host --window-levels 255
 //! --backend-quota 10000` of `ferroslam-sim replay` and `demo`); such a window takes hundreds of
-//! frames to solve at the board's quota. Why it is not the default: docs/decisions.md, "Local window: the board's
-//! map, two covisibility levels".
+//! frames to solve at the board's quota. Why it is not the default: docs/decisions.md, "Local
+//! window: the board's map, two covisibility levels".
 
 mod global;
 mod local;
