@@ -10,7 +10,8 @@
 //! share are here.
 
 /// Capacities that size the core's fixed arrays. Changing one changes RAM use: see
-/// `memory-budget.md`, which CI checks.
+/// `memory-budget.md`, which CI checks. Why the map's are what they are: docs/decisions.md,
+/// "Board RAM: depth level, map and BA capacities".
 pub mod capacity {
     /// Widest image the core accepts, in pixels (the sensor's VGA width).
     pub const MAX_WIDTH: usize = 640;
@@ -129,8 +130,8 @@ impl Resolution {
 
 /// The reference board's resolution: 640x480 sensor frames halved once to 320x240, the depth
 /// halved once more, to 160x120 (level 1): 38,400 bytes of depth instead of 153,600, which is
-/// what lets the board's RAM budget hold a map. Why level 1: `docs/decisions.md`, "Depth kept
-/// at 160x120 on the board".
+/// what lets the board's RAM budget hold a map. Why level 1: docs/decisions.md, "Board RAM:
+/// depth level, map and BA capacities".
 pub const QVGA: Resolution = Resolution { name: "qvga", downsample_levels: 1, depth_level: 1 };
 
 /// The full resolution, for hosts with memory to spare (depth at full resolution too).
@@ -226,7 +227,7 @@ pub struct SensorModel {
 /// The depth noise the back end's bundle adjustment weighs a keyframe's depth with, in 1/m,
 /// whatever the sensor: 6e-4 (`sigma_z = k z^2`: 2.4 mm at 2 m). It checks each reading against
 /// the landmark's other keyframes, so it can trust depth more than tracking does. Measured, not
-/// derived: `docs/decisions.md`, "Bundle adjustment's depth weight".
+/// derived: docs/decisions.md, "Bundle adjustment depth weight".
 pub const BA_DEPTH_NOISE_COEFF_PER_M: f32 = 6.0e-4;
 
 impl SensorModel {
@@ -259,7 +260,7 @@ impl Default for SensorModel {
 
 /// Back-end work units after each frame, in deterministic replay and on the board: every
 /// back-end step stays under about 2 M Cortex-M4 instructions (see `memory-budget.md`). Why
-/// this value: `docs/decisions.md`, "Back-end work quota per frame".
+/// this value: docs/decisions.md, "Back-end work quota per frame".
 pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 
 /// Largest timestamp difference when associating colour, depth and ground truth, in seconds

@@ -1,7 +1,7 @@
 //! The generated regions of `memory-budget.md` (see `budget_doc.rs`), written from what
 //! `budgets` measured: `checks` (budget vs measured), `block` (its `measured` values only),
-//! `structures` (the core's `size_of` table), `binaries` (ELF sections, flash, static RAM,
-//! stack), `cost` (instructions per frame by stage) and `vga`.
+//! `structures` (the core's `size_of` table), `binaries` (flash, static RAM and stack of each
+//! binary), `cost` (instructions per frame by stage, and by what the front end ran) and `vga`.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -14,9 +14,6 @@ use crate::budget_doc::{replace_region, write_measured};
 use crate::budget_figures::{Check, Measurements, VGA_DOES_NOT_RUN, show};
 use crate::cost::{FrameCost, describe_work};
 use crate::stats::{Stats, millions, thousands};
-
-/// The back end's bar per step (issue 4, host x86_64 instructions), for comparison only.
-const BACKEND_STEP_BAR: u64 = 4_000_000;
 
 /// `doc` with every generated region rewritten from `m` and `checks`.
 ///
@@ -142,17 +139,6 @@ fn binaries_table(m: &Measurements) -> String {
         let cells: Vec<String> = m.binaries.iter().map(cell).collect();
         let _ = writeln!(s, "| {label} | {} |", cells.join(" | "));
     };
-    let mut sections: Vec<&str> = Vec::new();
-    for b in &m.binaries {
-        for (n, _) in &b.sections {
-            if !sections.contains(&n.as_str()) {
-                sections.push(n);
-            }
-        }
-    }
-    for name in sections {
-        row(&format!("`{name}`"), &|b| thousands(b.section(name)));
-    }
     row("**flash**: `.vector_table + .text + .rodata + .data` (its load image)", &|b| {
         format!("**{}**", thousands(b.flash))
     });
@@ -162,10 +148,6 @@ fn binaries_table(m: &Measurements) -> String {
     let stack = u64::from(m.run.status.stack_peak_bytes);
     row("peak stack (painted, measured in QEMU; the same code on both)", &|_| thousands(stack));
     row("**static RAM + peak stack**", &|b| format!("**{}**", thousands(b.static_ram + stack)));
-    let state = u64::from(m.run.status.state_bytes);
-    row("of which the pipeline state (`size_of::<Pipeline>()` on the board)", &|_| {
-        thousands(state)
-    });
     let room = m.ref_board_stack_room();
     row("DTCM left for the stack (128 KiB less the DTCM statics)", &|b| {
         if b.name == "ref-board" { room.map_or_else(|| "-".into(), thousands) } else { "-".into() }
@@ -174,16 +156,10 @@ fn binaries_table(m: &Measurements) -> String {
 }
 
 fn cost_table(m: &Measurements, checks: &[Check]) -> String {
-    let mut s = wrap(&format!(
-        "Over {} frames of {} ({} keyframes), instructions per frame (SysTick ticks x 40, so \
-         exact to 40 instructions):",
-        m.run.frames.len(),
-        dataset_name(m),
-        m.run.keyframe_count()
-    ));
-    s.push_str(
-        "\n| stage | median | p90 | p99 | max | mean |\n| --- | ---: | ---: | ---: | ---: | ---: |\n",
-    );
+    // The run (frames, dataset, keyframes) is named by the `checks` region.
+    let mut s =
+        "| stage | median | p90 | p99 | max | mean |\n| --- | ---: | ---: | ---: | ---: | ---: |\n"
+            .to_owned();
     for ((key, label, _), st) in m.run.stage_stats() {
         let cell = |v: u64| if v < 100_000 { thousands(v) } else { millions(v) };
         let bold = |t: String| if key == "pipeline" { format!("**{t}**") } else { t };
@@ -198,33 +174,6 @@ fn cost_table(m: &Measurements, checks: &[Check]) -> String {
             cell(st.mean.round() as u64)
         );
     }
-    let split = |keyframe: bool| {
-        let v: Vec<u64> =
-            m.run.frames.iter().filter(|f| f.keyframe == keyframe).map(|f| f.pipeline()).collect();
-        (v.len(), Stats::of(&v))
-    };
-    let backend = m.run.stats("backend_step");
-    s.push('\n');
-    s.push_str(&wrap(&format!(
-        "The back-end step's max, {}, is {} the back end's own bar of {} per step (set and met \
-         in host x86_64 instructions: see `core/src/optim`; not one of issue 6's bars, so not \
-         judged here).",
-        millions(backend.max),
-        if backend.max > BACKEND_STEP_BAR { "above" } else { "within" },
-        millions(BACKEND_STEP_BAR)
-    )));
-    let (nk, k) = split(true);
-    let (no, o) = split(false);
-    s.push('\n');
-    s.push_str(&wrap(&format!(
-        "Pipeline by kind of frame: the {nk} frames that made a keyframe (feature detection and \
-         keyframe insertion run on them) median {}, max {}; the other {no} frames median {}, max \
-         {}.",
-        millions(k.median),
-        millions(k.max),
-        millions(o.median),
-        millions(o.max)
-    )));
     let bar =
         checks.iter().find(|c| c.budget.key == "qvga.insn_per_frame_max").map(|c| c.budget.bar);
     if let Some(kinds) = kinds_table(m, bar) {
@@ -246,9 +195,8 @@ fn kinds_table(m: &Measurements, bar: Option<u64>) -> Option<String> {
     };
     let all: Vec<u64> = m.run.frames.iter().map(FrameCost::pipeline).collect();
     let mut s = wrap(&format!(
-        "Pipeline by what the front end ran on the frame (the host replay's per-frame `work`, in \
-         `cost.json`; the firmware is bit-identical to it): {} of the {} frames are over the \
-         max's bar{}.",
+        "{} of the {} frames are over the max's bar{}. The pipeline by what the front end ran on \
+         the frame (`work` in `cost.json`, from the host replay):",
         over(&all),
         all.len(),
         bar.map_or_else(String::new, |b| format!(" of {}", millions(b)))
@@ -273,28 +221,15 @@ fn kinds_table(m: &Measurements, bar: Option<u64>) -> Option<String> {
 }
 
 fn vga_table(m: &Measurements) -> String {
-    let mut s = wrap(&format!(
-        "The firmware figures of VGA are `null` in the JSON, with `vga.runs = false` and this \
-         reason: {VGA_DOES_NOT_RUN}."
-    ));
-    s.push_str("\n| figure (`size_of` on the host) | bytes |\n| --- | ---: |\n");
-    for (key, label) in [
-        ("vga.frame_buffers_bytes", "frame buffers: VGA gray + depth"),
-        ("vga.frontend_state_bytes", "`tracking::VgaFrontend`"),
-        ("vga.ba_workspace_bytes", "BA workspace (`backend::BoardBundleAdjuster`, as QVGA)"),
-        ("vga.slam_state_bytes", "`system::VgaSlam` (front end + map + back end)"),
-    ] {
-        let v = m.figure(key).map_or_else(|| "-".into(), thousands);
-        let _ = writeln!(s, "| {label} (`{key}`) | {v} |");
-    }
     let total = m.figure("vga.frame_buffers_bytes").unwrap_or(0)
         + m.figure("vga.slam_state_bytes").unwrap_or(0);
-    let _ = writeln!(
-        s,
-        "| frame buffers + `VgaSlam`, before code, stack or any other state | {} |",
+    wrap(&format!(
+        "The firmware figures of VGA are `null` in the JSON, with `vga.runs = false` and this \
+         reason: {VGA_DOES_NOT_RUN}. On the host, VGA's frame buffers and `system::VgaSlam` \
+         (`vga.frame_buffers_bytes` + `vga.slam_state_bytes`) are {} B before code, stack or any \
+         other state; its other sizes are in the core structures' table.",
         thousands(total)
-    );
-    s
+    ))
 }
 
 #[cfg(test)]

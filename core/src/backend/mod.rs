@@ -38,15 +38,9 @@
 //! newest segment of the problem), so the part of the map the front end tracks stays rigid.
 //!
 //! A local BA goes first: a global BA starts only when no keyframe waits for one. When the
-//! front end makes keyframes faster than local BAs finish, a global BA therefore never starts.
-//! That is the case on 7-Scenes with the board's 32-keyframe map (a keyframe every 17 frames,
-//! 16 local BAs for 57 keyframes at the default quota of 2,500 units; `memory-budget.md`), and
-//! on the demo no global BA finishes before the last frame (report.json `global_runs` 0 on
-//! both). Measured and not adopted: the global BA first when a segment completes. With segments
-//! of 16 keyframes, 7-Scenes SLAM over `cargo xtask spread` averaged 0.0339 m against 0.0336 m,
-//! and the demo's default run went from 2.97 mm to 4.08 mm (its mean over 16 start frames from
-//! 3.07 to 2.96 mm). With segments of 8, 7-Scenes averaged 0.0362 m (max 0.0464, SLAM better
-//! than odometry in 9 of 12 runs instead of 12), and the demo gave 2.99 mm (mean 2.99 mm).
+//! front end makes keyframes faster than local BAs finish, a global BA therefore never starts (the
+//! case on 7-Scenes with the board's 32-keyframe map). Why: docs/decisions.md, "Global BA after
+//! the local BAs".
 //!
 //! # Capacities: the board's and the host-scale
 //!
@@ -58,45 +52,12 @@
 //! room for a full window and is the host simulator's `--map host`. While the board's map has
 //! room (fewer than 32 keyframes, nothing retired) the two give the same bits.
 //!
-//! Measured with it: `ferroslam-sim demo --frames 3000 --map host --window-levels N
-//! [--backend-quota Q]` (the host-scale map keeps all of its 250 keyframes; the board's keeps 25)
-//! and `cargo xtask spread -- --map host --window-levels N [--backend-quota Q]` on 7-Scenes (12
-//! start frames; its map never holds more than 70 keyframes). ATE as evo computes it; "large
-//! map": windows built while the map held more than 120 keyframes.
-//!
-//! | configuration | demo, 3000 frames | local BAs (global) | windows in a large map: count, mean | 7-Scenes SLAM mean (online poses); better than odometry |
-//! | --- | --- | --- | --- | --- |
-//! | board's map (the default) | 10.7 mm | 31 (0) | - | 0.0331 m (0.0344); 12 of 12 |
-//! | host-scale, 2 levels | 9.7 mm | 32 (0) | 12, 14.6 | 0.0327 m (0.0348); 12 of 12 |
-//! | host-scale, 8 levels | 8.0 mm | 15 (0) | 2, 64.0 | - |
-//! | host-scale, 255 levels | - | - | - | 0.0348 m (0.0352); 10 of 12 |
-//! | host-scale, 2 levels, quota 10,000 | - | - | - | 0.0336 m (0.0374); 12 of 12 |
-//! | host-scale, 8 levels, quota 10,000 | 8.3 mm | 48 (1) | 10, 59.5 | 0.0367 m (0.0421); 10 of 12 |
-//! | host-scale, 255 levels, quota 10,000 | 7.7 mm | 47 (1) | 9, 65.0 | the same as 8 levels |
-//!
-//! Odometry: 13.0 mm on the demo's 3,000 frames, 0.0382 m on 7-Scenes over the same 12 runs. The
-//! demo figures are single runs. A keyframe shares landmarks mostly with keyframes near it in time
-//! (the front end makes new landmarks at each keyframe and re-acquires few old ones, and nothing
-//! closes loops), so two levels of covisibility reach a dozen keyframes; the paper's window of
-//! 50-65 takes more levels (`--window-levels 8` or `255`), and a window that size takes hundreds of
-//! frames to solve at the board's quota (2 windows in the large map, 15 local BAs in all), so it
-//! wants a larger quota too. So configured, the long demo's run was better (9.7 -> 7.7 mm, a single
-//! draw: see below; where 612 landmarks became reference landmarks, 23% of the point variables;
-//! none at 2 levels), and 7-Scenes loses (0.0327 -> 0.0367 m, its online poses worse than odometry,
-//! 0.0421 against 0.0382 m). Neither of the paper's additions explains that loss: with no reference
-//! landmarks (a build with `reference_after` 255) 7-Scenes gave 0.0360 m (online 0.0400, 8 of 12),
-//! with no global BA 0.0359 m (0.0414, 11 of 12). The defaults therefore stay the board's map with
-//! 2 levels; the paper's window is the option `--map host --window-levels 255 --backend-quota
-//! 10000`, which meets issue 4's "50-65 when the map holds more than 120 keyframes" on the long
-//! demo and is measured, not a default that pays on real data.
-//!
-//! How far to trust the demo's single runs: the board's 3,000-frame run from five start frames
-//! (`--skip-frames` 0, 150, ..., 600), built before and after the small-image rotation's two-step
-//! fine level (70709b2), which changes only the one rotation estimate each run makes, at its second
-//! frame: 5.3 / 9.6 / 9.4 / 10.5 / 4.7 mm before and 10.7 / 9.6 / 14.2 / 10.5 / 8.5 mm after
-//! (starts 0, 150, 300, 450, 600; where that estimate gave the same bits the runs are identical).
-//! A small change of one estimate at the start thus moves a long run by up to 5 mm: the demo
-//! column above is one draw each, not a ranking.
+//! The default window grows by 2 covisibility levels ([`BackendParams::window_levels`]) on the
+//! board's map. The paper's window of 50-65 keyframes in a map of over 120 is an option: the
+//! host-scale map with `window_levels` 255 and a larger quota (`--map host --window-levels 255
+//! --backend-quota 10000` of `ferroslam-sim replay` and `demo`); such a window takes hundreds of
+//! frames to solve at the board's quota. Why it is not the default: docs/decisions.md, "Local
+//! window: the board's map, two covisibility levels".
 
 mod global;
 mod local;
@@ -165,7 +126,8 @@ pub struct BackendParams {
     /// Covisibility levels the window grows by (1: keyframes sharing landmarks with the new one;
     /// 2: also those sharing with them). The window stops growing earlier when a level adds no
     /// keyframe, so `u8::MAX` means until it holds `window_max` keyframes or no keyframe joins.
-    /// Default 2 (the module documentation measures more, with the host-scale map).
+    /// Default 2 (why: docs/decisions.md, "Local window: the board's map, two covisibility
+    /// levels").
     pub window_levels: u8,
     /// Bundle adjustments after which a landmark becomes a reference landmark. Default 10.
     pub reference_after: u8,

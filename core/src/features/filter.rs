@@ -13,16 +13,16 @@
 //! `b = (size - 1) / 2`): 16 taps for `Dxx` and `Dyy`, 16 more for `Dxy`. The window is a
 //! fixed-size array (its length a const generic per layer), so every tap is a constant index.
 //! Along a row, `Dxy` is computed only where `fxx * fyy` exceeds the threshold: det(H) cannot
-//! exceed it elsewhere, and that is over 90% of the samples of 7-Scenes frames at threshold 30.
+//! exceed it elsewhere, and that is most samples (over 90% on real frames at threshold 30).
 //!
 //! On the Cortex-M4 a row is computed in two passes so that each loop keeps its row pointers in
 //! registers (the six `Dxx`/`Dyy` rows of one loop did not fit): `Dyy` into the output row, then
 //! `Dxx`, whose product with `Dyy` is first tested in integers against a bound that provably
 //! keeps `fxx * fyy` at or below the threshold (see [`Threshold`]), so that most samples skip
 //! the float conversions and products. The few samples left get `Dxy` after each block of 32,
-//! in a function of their own. Measured on 7-Scenes keyframe 145: about 24 instructions per
-//! sample for the first pass and 37 for the second (64 and 57 per sample, levels 0 and 1, for
-//! one pass with the float test), about 92 per sample for `Dxy` and det(H).
+//! in a function of their own. About 24 instructions per sample for the first pass and 37 for
+//! the second, about 92 per sample for `Dxy` and det(H); why two passes: docs/decisions.md,
+//! "Fast-Hessian detector cost".
 
 /// Filter sizes (side, in pixels of the level) of the four layers of every pyramid level: SURF's
 /// first octave. Only the two middle layers can hold a maximum (they have a layer on either side).
@@ -293,7 +293,7 @@ impl Threshold {
 /// det(H) of `layer` at the samples `x0, x0 + step, ...` (`step` 1 or 2) of row `y` into `out`
 /// (one per element, as many as both `out` and the integral rows allow), except that a sample
 /// whose `fxx * fyy` is at most the threshold gets [`BELOW`]: its det(H), no larger, cannot be a
-/// maximum above the threshold, and most samples are such (over 90% on 7-Scenes at threshold
+/// maximum above the threshold, and most samples are such (over 90% on real frames at threshold
 /// 30), so their `Dxy` (half the taps) is never computed. Bit `j % 8` of `marks[j / 8]` is set
 /// for every `out[j]` above the threshold (`marks` is not cleared first). Requires
 /// `x0, y >= b + 1` and `threshold` made for `layer`.

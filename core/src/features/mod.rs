@@ -40,18 +40,12 @@
 //!
 //! Per frame: one integral update per pixel of both levels, then two `Dxx`/`Dyy` evaluations (16
 //! integral reads each) per sample, a quarter of the image's pixels per level. On 7-Scenes QVGA
-//! frames (the `detect_bench` example under callgrind) [`HessianDetector::detect`] costs about
-//! 4.2 M host x86-64 instructions (6.5 M when built without auto-vectorization, closer to a
-//! scalar Cortex-M) and yields about 140 features at the front end's threshold of 30; the
-//! previous detector, every pixel and every layer of a first octave, cost 95 M for 165.
-//!
-//! On the emulated Cortex-M4 (`cargo xtask profile-firmware`, 7-Scenes keyframe 145, about
-//! 55,000 middle-layer samples) detection costs about 5.8 M instructions: 0.67 M for the
-//! integral rows (about 5 per pixel of the image, 11 per pixel of its 2x2 mean), about 3.3 M
-//! for `Dxx`/`Dyy` and the threshold test (about 60 per sample, in two passes, see the filter
-//! module), 0.5 M for det(H) of the few percent of samples that pass it, and the rest for
-//! suppression, refinement and the outer layers around the marked samples. (5.94 M before the
-//! sign of the Laplacian read only the `Dxx` and `Dyy` rows: 5.76 M since.)
+//! frames [`HessianDetector::detect`] costs about 4.2 M host x86-64 instructions (the
+//! `detect_bench` example under callgrind) and yields about 140 features at the front end's
+//! threshold of 30. On the Cortex-M4 a keyframe's detection (about 55,000 middle-layer samples)
+//! costs about 5.8 M instructions, 3.3 M of them for `Dxx`/`Dyy` and the threshold test (about 60
+//! per sample, in two passes, see the filter module). How it got there: docs/decisions.md,
+//! "Fast-Hessian detector cost".
 //!
 //! # Memory
 //!

@@ -129,8 +129,8 @@ pub fn downsample_gray_2x(src: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Resu
 /// the two middle ones: never an average across samples on different surfaces (which would
 /// invent a point floating between foreground and background). Keeping `s[1]` on smooth blocks
 /// too (the rule before this one) put every slanted surface nearer to the camera by up to half
-/// the depth step of a full-resolution pixel: on the synthetic demo, whose depth is exact, the
-/// median took the odometry ATE from 0.0058 m to 0.0053 m (`ferroslam-sim demo --mode odometry`).
+/// the depth step of a full-resolution pixel. Why: docs/decisions.md, "Depth halving keeps the
+/// median on one surface".
 fn depth_block([[a, b], [c, d]]: [[u16; 2]; 2]) -> u16 {
     let n = u8::from(a != 0) + u8::from(b != 0) + u8::from(c != 0) + u8::from(d != 0);
     if n == 4 {

@@ -251,7 +251,8 @@ pub const MAX_DEPTH_LEVEL: u8 = 2;
 /// [`downsample_depth_2x`](super::downsample_depth_2x) applied `l` times makes it. Every accessor
 /// takes and gives **image** pixels, so the pipeline reads depth the same way at any level. Level 1
 /// holds the depth in a quarter of the memory: the reference board keeps level 1
-/// ([`QVGA`](crate::config::QVGA)`.depth_level`; `memory-budget.md` gives the trade-off).
+/// ([`QVGA`](crate::config::QVGA)`.depth_level`; the trade-off: docs/decisions.md, "Board RAM:
+/// depth level, map and BA capacities").
 #[derive(Debug, Clone, Copy)]
 pub struct DepthView<'a> {
     raw: ImageView<'a, u16>,

@@ -39,15 +39,13 @@
 //! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates; at `s = 1` three adjacent candidates share
 //! their pixel reads and, two of them, their multiplies: `Quantized::products` in
 //! `integer_search.rs`); then per Lucas-Kanade step `n` shared-weight samples and ~10 flops
-//! each. Measured with callgrind on 7-Scenes QVGA templates (host x86_64, release build) before
-//! the column sums slid (commit 5a4ce29): about 30 k instructions per call at
-//! [`TrackParams::FINE`] (`h = 4`, `R = 1`, `s = 1`: 9 candidates; the template warp is a quarter
-//! of it, the Lucas-Kanade steps, typically 2-4 plus the final score, another third) and 58 k at
-//! [`TrackParams::GUIDE`] (`R = 3`: 49 candidates). Sliding them took the mean over the calls of
-//! 100 frames from 33.0 k to 31.4 k. The template's samples read a copy of the pixels they need
-//! (one word-wise row copy per pixel row of a 16 x 16 template) instead of checking every read:
-//! on the Cortex-M4 a sample went from about 54 to about 38 instructions, 43 with its share of
-//! the copy (`profile-firmware`).
+//! each. About 30 k host instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`, `s =
+//! 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps, typically 2-4
+//! plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49
+//! candidates). The template's samples read a copy of the pixels they need (one word-wise row
+//! copy per pixel row of a 16 x 16 template) instead of checking every read: about 43 Cortex-M4
+//! instructions a sample with its share of the copy. The figures: docs/decisions.md, "Patch
+//! tracker cost" and "Template warp through a pixel window".
 //!
 //! # Memory
 //!
@@ -127,13 +125,10 @@ impl TrackParams {
     };
 
     /// The few guide landmarks tracked from the motion model alone: an exhaustive search of
-    /// radius 3 (49 candidates), with the ambiguity test. Measured on the fast-rotation demo
-    /// with prediction errors of 0.5-3 px: an exhaustive radius 4 matched 148 of 164 landmarks
-    /// right and 3 wrong; radius 8 in steps of 2 only 95 right and 25 wrong (a 9 x 9 template's
-    /// correlation peak is about 2 px wide, so a step of 2 misses it, and a wider window holds
-    /// more look-alikes). Radius 3 keeps the accuracy of radius 4 on the demo and 7-Scenes with
-    /// 40% fewer candidates. Larger errors are left to the rotation re-prediction and
-    /// [`Self::GUIDE_WIDE`].
+    /// radius 3 (49 candidates), with the ambiguity test: a 9 x 9 template's correlation peak is
+    /// about 2 px wide, so a step of 2 misses it, and a wider window holds more look-alikes.
+    /// Larger errors are left to the rotation re-prediction and [`Self::GUIDE_WIDE`]. Why radius
+    /// 3: docs/decisions.md, "Guide search radius".
     pub const GUIDE: Self = Self {
         search_radius: 3,
         search_step: 1,
@@ -185,8 +180,8 @@ pub struct PatchTrack {
 ///
 /// This, [`Steepest`] and the integer search's `Quantized` are filled in place (`EMPTY`, then a
 /// `&mut self` method) rather than returned: returned by value, each was built on the stack and
-/// copied into its caller's, and on the Cortex-M4 those copies (`__aeabi_memcpy4`, 320 k
-/// instructions a frame on 7-Scenes) were a twentieth of the front end.
+/// copied into its caller's (`__aeabi_memcpy4` on the Cortex-M4). Why: docs/decisions.md,
+/// "Tracking code generation on the Cortex-M4".
 struct Template<const N: usize, const S: usize> {
     values: [[f32; S]; S],
     zero_mean: [[f32; N]; N],
@@ -439,10 +434,8 @@ fn refine<const N: usize, const S: usize>(
 ///
 /// The template and its steepest-descent images are not in it: they stay on the stack of each
 /// track, zeroed first. Read through a pointer instead, the Lucas-Kanade loops took more
-/// Cortex-M4 instructions than their zeroing costs: over the first 146 frames of 7-Scenes
-/// (`cargo xtask profile-firmware --frames 146`), with the steepest-descent images here
-/// `track_fixed` cost 111 k instructions a frame more for 39 k less zeroing, with the template
-/// 68 k more for 47 k less.
+/// Cortex-M4 instructions than their zeroing costs (docs/decisions.md, "One tracking scratch per
+/// final stage").
 struct Workspace<const N: usize> {
     window: Window,
     quantized: Quantized<N>,
@@ -462,9 +455,8 @@ impl<const N: usize> Workspace<N> {
 ///
 /// Why it exists: built afresh for every track, that scratch has to be zeroed first (safe Rust
 /// cannot leave it uninitialized). A caller that tracks many patches builds one `TrackScratch`
-/// and passes it to every call: over the first 146 frames of 7-Scenes on the Cortex-M4 that
-/// saved 82 k instructions a frame (`cargo xtask profile-firmware --frames 146`), mostly in
-/// `__aeabi_memclr4`. Other template sizes build their scratch per call.
+/// and passes it to every call (the figures: docs/decisions.md, "One tracking scratch per final
+/// stage"). Other template sizes build their scratch per call.
 pub struct TrackScratch {
     nine: Workspace<9>,
 }

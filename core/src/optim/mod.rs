@@ -76,22 +76,10 @@
 //! A Levenberg-Marquardt iteration with `k` PCG iterations costs about
 //! `(6 + 2k) n_obs + (6 + 3k) n_points` units, plus `5 + 5k` per rig and camera.
 //!
-//! Host cost per unit (x86_64 release build, callgrind, on the benchmark problem below; the
-//! Cortex-M count is still to be measured):
-//!
-//! | unit | instructions |
-//! | --- | --- |
-//! | observation visit: Schur terms (linearization, sweep 1, with the 6x6 block update) | ~800; ~880 with a camera offset |
-//! | observation visit: linearization (sweep 0, camera and point blocks) | ~640 |
-//! | observation visit: point block (product sweep 0, back-substitution in trial and apply) | ~445 |
-//! | observation visit: camera part of the product (sweep 1) | ~350 |
-//! | observation visit: trial cost | ~180 |
-//! | end of a sweep (damped 3x3 inverse) / end of a point | ~120 / ~10 |
-//! | rig or camera item | 13 to ~530 (the damped 6x6 Cholesky); ~1,250 to reduce a camera with an offset (its 6x6 block through `Ad`) |
-//!
-//! On average 391 instructions per unit (local BA) and 401 (segmented). With quota 5,000 no step
-//! exceeded 3.40 M instructions (at most 680 per unit over a step): that quota keeps every step
-//! under the back end's 4 M bar with a margin; 6,000 does not in segmented mode (4.09 M).
+//! A unit costs about 400 host instructions on average (x86_64; the Cortex-M count is still to be
+//! measured) and at most about 680 averaged over a step, so a quota of 5,000 keeps a step under
+//! the back end's bar of 4 M host instructions. The cost of each kind of unit, and the benchmark's
+//! figures: docs/decisions.md, "Bundle adjustment work units".
 //!
 //! # Memory
 //!
@@ -127,12 +115,6 @@
 //!     --toggle-collect='ba_step::one_step*' --dump-after='*::one_step*' $BIN 5000 > target/ba-cg/steps.txt
 //! grep -h '^totals:' target/ba-cg/cg.out.*.* | sort -k2 -n | tail -1
 //! ```
-//!
-//! Measured (2026-11-23, quota 5,000): local BA 4 LM iterations (3 accepted), 23 PCG
-//! iterations, 465,625 units, 182.2 M instructions in 94 steps (median step 1.84 M, max 3.28 M):
-//! about 45 M instructions per LM iteration, of which a PCG iteration (one matrix-free product)
-//! is about 4.5 M. Segmented (12 free segments): 4 LM iterations, 18 PCG iterations, 393,314
-//! units, 157.6 M instructions in 79 steps (max 3.40 M).
 
 mod linalg;
 mod model;

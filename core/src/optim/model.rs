@@ -165,9 +165,7 @@ impl Model {
     /// projection is not finite, like [`PinholeCamera::project`].
     ///
     /// Always inlined: called, its 88-byte `Option<Terms>` went through the stack and was copied
-    /// out (`__aeabi_memcpy4`, about a thousand calls a frame on 7-Scenes); inlined into the BA
-    /// passes, the back-end step's median on the Cortex-M4 went from 1.14 to 0.85 M instructions
-    /// (`cargo xtask budgets`, 1000 frames), every output bit the same.
+    /// out (`__aeabi_memcpy4`). Why: docs/decisions.md, "Observation terms inlined".
     #[inline(always)]
     pub(super) fn terms(
         &self,

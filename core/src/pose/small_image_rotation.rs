@@ -19,9 +19,9 @@
 //! visits at most 1,200 + 4,800 pixels per iteration, each pixel ~60 flops, on the coarse level
 //! until the step is small and on the fine level for at most two steps
 //! ([`RotationParams::DEFAULT`], which says why no more); it is paid only when the guides fail,
-//! and is then, after the final stages, the largest part of such a frame. On the Cortex-M4,
-//! frame 133 of 7-Scenes: 2.15 M instructions, 4.99 M with both levels converged to 1e-4 rad
-//! (`cargo xtask profile-firmware --frames 134` less `--frames 133`; `memory-budget.md`).
+//! and is then, after the final stages, the largest part of such a frame: about 2 M Cortex-M4
+//! instructions (docs/decisions.md, "Small-image rotation: at most two fine steps" and
+//! "Small-image rotation cost").
 
 use nalgebra::{Matrix5, Point3, Rotation3, UnitQuaternion, Vector3, Vector5};
 
@@ -48,15 +48,10 @@ impl RotationParams {
     /// pixel at a 262-pixel focal length), then at most two steps on the fine level.
     ///
     /// The estimate's error is set by its model (pure rotation, while the camera also translates),
-    /// not by how far Gauss-Newton converges. Against ground truth (`tests/tests/rotation_real.rs`:
-    /// every pair of consecutive 7-Scenes frames, and pairs three frames apart) these settings are
-    /// as close to the truth as [`Self::CONVERGED`] (median error 0.23 degrees one frame apart),
-    /// and so they were on the demo's fast-rotation variant (0.11 degrees mean, exact ground truth;
-    /// a temporary harness). On the 16 frames where the 7-Scenes replays estimated the rotation
-    /// with the converged settings, started from no rotation, these visit 9,246 pixels a call on
-    /// average against 14,552; on the Cortex-M4 the frames that estimate it without making a
-    /// keyframe cost at most 15.5 M instructions instead of 17.3 M (`memory-budget.md`). The guides
-    /// that start from the estimate search 3 pixels, about 0.7 degrees at QVGA.
+    /// not by how far Gauss-Newton converges: against ground truth (`tests/tests/rotation_real.rs`)
+    /// these settings are as close to the truth as [`Self::CONVERGED`], with fewer pixel visits.
+    /// The guides that start from the estimate search 3 pixels, about 0.7 degrees at QVGA. Why:
+    /// docs/decisions.md, "Small-image rotation: at most two fine steps".
     pub const DEFAULT: Self =
         Self { coarse_iterations: 12, fine_iterations: 2, stop_step_rad: 1.0e-3 };
 
@@ -421,9 +416,9 @@ impl Sums {
 // Never inlined: on the Cortex-M4F a pixel's sampling and Jacobian then have the float registers
 // to themselves. Inlined into the row loop, with the loop's invariants (the rotation, both
 // cameras, the photometric parameters) held in registers, the sampled neighbourhood was spilled
-// to the stack on every pixel, and the call costs less than those spills (measured: frame 145 of
-// 7-Scenes, `cargo xtask profile-firmware`). It writes the term into the row's slot itself:
-// returned as an `Option<Term>`, the term went through two stack copies on the way there.
+// to the stack on every pixel, and the call costs less than those spills. It writes the term into
+// the row's slot itself: returned as an `Option<Term>`, the term went through two stack copies on
+// the way there. The figures: docs/decisions.md, "Small-image rotation cost".
 #[inline(never)]
 fn term_into(
     out: &mut Term,

@@ -40,8 +40,10 @@ pub type QvgaSlam = Slam<Qvga>;
 pub type VgaSlam = Slam<Vga>;
 
 /// The front end's parameters in SLAM mode: [`FrontendParams::DEFAULT`] without depth fusion
-/// (bundle adjustment refines landmark positions instead). Why: `docs/decisions.md`, "No depth
-/// fusion in SLAM mode".
+/// (bundle adjustment refines landmark positions instead).
+///
+/// Why: docs/decisions.md, "Depth fusion off in SLAM mode"; where SLAM still loses to odometry:
+/// docs/decisions.md, "SLAM against odometry under per-frame depth noise".
 pub const SLAM_FRONTEND: FrontendParams =
     FrontendParams { fuse_depth: false, ..FrontendParams::DEFAULT };
 

@@ -21,7 +21,8 @@
 //!    guides with a wider search; the strongest final stage wins. Only when none gave a pose at
 //!    all are the same landmarks searched with the affine bank
 //!    ([`match_region`](crate::matching::match_region)), the costliest attempt (see
-//!    `frontend_match.rs`, which gives the measurements behind the order).
+//!    `frontend_match.rs`; why this order: docs/decisions.md, "Prediction tried before the
+//!    guides").
 //! 4. Final stage: from the start pose, up to `max_tracked` landmarks spread over an 8 x 6 grid
 //!    are matched with a small search and sub-pixel refinement;
 //!    [`track_pose`](crate::pose::track_pose) estimates `t_cw` from the matches (pixel and, where the
@@ -48,19 +49,12 @@
 //!    trajectory stays continuous, with whatever drift the prediction has), and tracking resumes
 //!    from it. Its [`FrameResult::tracked`] is `false` and [`FrameResult::reinitialized`] `true`.
 //!
-//! # Measured and not adopted: the last poses following the reference keyframe
+//! # After bundle adjustment
 //!
-//! When bundle adjustment moves the last keyframe, the motion model's poses (and the last output
-//! pose) stay where tracking put them, so the next prediction is off by that move; the final
-//! stage then tracks from it against the moved landmarks. ORB-SLAM instead re-expresses the last
-//! frame relative to its reference keyframe before predicting. Built that way (the correction
-//! `T_wk(now) T_wk(made)^-1` applied to the motion model, the last pose and the keyframe rule's
-//! reference pose; odometry unchanged, bit for bit) and measured with `cargo xtask spread`: on
-//! 7-Scenes (12 start frames) SLAM's ATE mean went 0.0324 -> 0.0359 m and SLAM was better than
-//! odometry in 7 of 12 runs instead of 12, while the online poses stayed about even (0.0353 ->
-//! 0.0358 m); on the demo (`spread --demo`, 16 start frames) SLAM 3.37 -> 3.15 mm, better than
-//! odometry in 8 of 16 instead of 7. The trajectory after bundle adjustment, which issue 4's bars
-//! judge, lost more on the real data than the demo gained, so the poses do not follow.
+//! When bundle adjustment moves the last keyframe, the motion model's poses and the last output
+//! pose stay where tracking put them, so the next prediction is off by that move (ORB-SLAM instead
+//! re-expresses the last frame relative to its reference keyframe). Why: docs/decisions.md, "Last
+//! poses not moved with the reference keyframe".
 //!
 //! # Memory
 //!
@@ -220,10 +214,9 @@ impl GuideStage {
 }
 
 /// The [`FrontendError::SizeMismatch`] of `frame` and `cam` for a front end of `W x H`, built
-/// apart from the check (cold, not inlined). Measured on the board's pipeline (`cargo xtask
-/// profile-firmware --frames 50`, against the error that held the gray size alone): built inline
-/// it cost 8.9 k more instructions a frame, built here 19 k fewer (the compiler's choices in the
-/// inlined front end, not the check itself).
+/// apart from the check (cold, not inlined): built inline, it made the compiler's code for the
+/// inlined front end costlier on the board. Why: docs/decisions.md, "Tracking code generation on
+/// the Cortex-M4".
 #[cold]
 #[inline(never)]
 fn size_mismatch<const W: usize, const H: usize>(

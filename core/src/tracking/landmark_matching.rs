@@ -29,36 +29,13 @@ const WEAK_FRACTION: f32 = 0.6;
 /// at radius 3, each about twice a final-stage track) are thus paid for only on frames the
 /// prediction serves poorly.
 ///
-/// Measured on 7-Scenes with the prediction first on every frame (no [`GUIDES_FIRST_TURN_RAD`]),
-/// against the guides first (`cargo xtask budgets` over 1000 frames on the Cortex-M4; `cargo
-/// xtask spread`, 12 start frames; back-end quota 2,500): at 0.8 the pipeline median went
-/// 7.77 -> 6.37 M instructions, SLAM ATE mean 0.0338 -> 0.0340 m, SLAM better than odometry in
-/// 10 of 12 runs instead of 12. At 0.6 (the weak fraction: the prediction kept whenever it
-/// tracks) the inliers dip from frame to frame, the keyframe rule fires on the dips (109
-/// keyframes instead of 57 in the SLAM run) and SLAM loses to odometry (0.0370 against
-/// 0.0365 m, 4 of 12); at 0.85 SLAM 0.0354 m, 8 of 12, median 6.45 M; at 0.9 most frames pay
-/// for both and the median is 8.44 M.
-///
-/// Measured and not adopted (issue 6's max): keeping a prediction under this fraction when its
-/// pose already calls for a keyframe (the keyframe renews the local map anyway). Every frame over
-/// 15 M instructions on the Cortex-M4 ran the guides and a second final stage, and 15 of the 25
-/// made a keyframe too (16.73 M on average, against 11.81 M for a keyframe after one final
-/// stage; `memory-budget.md`). With it, `cargo xtask spread` on 7-Scenes gave SLAM 0.0387 m
-/// (max 0.0534, the default run 0.0534 m, over issue 4's 0.050 m bar), better than odometry in
-/// 5 of 12 runs, against 0.0324 m and 12 of 12 (odometry 0.0368 against 0.0375 m): the
-/// keyframe's pose, which anchors its new landmarks, needs the better final stage.
+/// Why 0.8, and why a weak prediction is not kept when a keyframe is due: docs/decisions.md,
+/// "Prediction tried before the guides".
 const PREDICTION_FRACTION: f32 = 0.8;
 
 /// When the motion model predicts a turn of more than this since the last frame (1 degree), the
-/// guides go first ([`GUIDES_FIRST`]): the prediction alone served the demo's fast-rotation
-/// variant poorly. Its SLAM ATE over 16 start frames (0, 3, ..., 45; a temporary test, not
-/// committed) was 5.05 mm with the prediction first on every frame, 3.15 mm with the guides
-/// first on every frame, and with this gate at 2, 1.5, 1.2, 1 and 0.8 degrees 4.23, 3.83,
-/// 3.52, 3.25 and 3.19 mm. 7-Scenes turns 0.43 degrees a frame (median; 0.77 at the 90th
-/// percentile), so its frames nearly all take the prediction first; at 1 degree its `spread`
-/// gave odometry 0.0375 m and SLAM 0.0324 m (max 0.0371, better than odometry in 12 of 12),
-/// and at 0.8 degrees SLAM 0.0355 m (8 of 12, default run 0.0537 m, over issue 4's bar), at
-/// 1.2 degrees 0.0341 m but the demo's default SLAM run 3.32 mm (over its 3 mm bar).
+/// guides go first ([`GUIDES_FIRST`]): on fast turns the prediction alone serves poorly. Why this
+/// value: docs/decisions.md, "Guides first on a fast turn".
 const GUIDES_FIRST_TURN_RAD: f32 = core::f32::consts::PI / 180.0;
 
 /// One way to find the final stage's start pose.
@@ -73,12 +50,10 @@ enum Attempt {
 
 /// The attempts in order of cost (see [`Frontend::match_landmarks`]); on a frame turning fast,
 /// [`GUIDES_FIRST`]. The last, the affine bank, runs only when no earlier attempt gave a pose at
-/// all, weak or not: its 24 region matches cost about ten final stages (host wall clock on
-/// 7-Scenes: 3.1 ms against about 0.3 ms), and on the board frame 145 of 7-Scenes (back-end quota
-/// 2,500, the guides then first on every frame) cost 82.94 M instructions with it, 36.57 M
-/// without it (a rerun of the winning final stage included), so it is kept for frames that
-/// would be lost otherwise. A weak pose (at least `min_inliers` inliers) is tracking; the
-/// keyframe rule then renews the local map.
+/// all, weak or not: its 24 region matches cost about ten final stages, so it is kept for frames
+/// that would be lost otherwise. A weak pose (at least `min_inliers` inliers) is tracking; the
+/// keyframe rule then renews the local map. Why: docs/decisions.md, "Affine bank only when nothing
+/// else gave a pose".
 const ATTEMPTS: [Attempt; 6] = [
     Attempt::Prediction(GuideStage::MotionModel),
     Attempt::Guides(GuideStage::MotionModel, false),

@@ -288,7 +288,7 @@ fn victim_slot(key: u64) -> usize {
 ///
 /// Done literally, an eviction shifts every later landmark (about 300 bytes each) down one slot:
 /// a keyframe that brings up to 200 landmarks into a full local map of 256 moved up to about
-/// 3 MB, 2-3 M instructions on the Cortex-M4 (frame 483 of 7-Scenes). Here an insertion goes
+/// 3 MB, 2-3 M instructions on the Cortex-M4. Here an insertion goes
 /// into the slot of a landmark evicted before it, or at the end. Dropping the batch then puts the
 /// landmarks in the literal procedure's order, one swap per displaced landmark (the cycles of
 /// the permutation): the landmarks held before the batch less the evicted ones, in their order,
@@ -296,13 +296,12 @@ fn victim_slot(key: u64) -> usize {
 /// map, and they answer as the literal procedure would (the unit tests compare both on random
 /// sequences of evictions, failed insertions and insertions).
 ///
-/// Finding each victim by a scan of the whole local map cost keyframe 515 of 7-Scenes 0.38 M
-/// Cortex-M4 instructions over its 653 calls of [`Insertions::make_room`] (`cargo xtask
-/// profile-firmware --frames 516` less `--frames 515`). The landmarks held before the batch do
-/// not change during it, so their eviction order is built once, in a binary heap at the first
-/// eviction (0.07 M on that frame); only the landmarks placed during the batch are scanned, and
-/// those the front end places were all found in the current frame, which no eviction takes. The
-/// batch takes about 3.4 KB of stack for `N = 256` (2 KB of it the heap), its drop 0.8 KB more.
+/// The landmarks held before the batch do not change during it, so their eviction order is built
+/// once, in a binary heap at the first eviction, instead of a scan of the whole local map per
+/// victim; only the landmarks placed during the batch are scanned, and those the front end places
+/// were all found in the current frame, which no eviction takes. The batch takes about 3.4 KB of
+/// stack for `N = 256` (2 KB of it the heap), its drop 0.8 KB more. Why: docs/decisions.md,
+/// "Local map evictions without shifting".
 #[derive(Debug)]
 pub struct Insertions<'a, const N: usize> {
     local: &'a mut LocalMap<N>,

@@ -13,29 +13,10 @@
 //!
 //! # Why it is off by default ([`FrontendParams::map_reuse`](super::FrontendParams::map_reuse))
 //!
-//! It made SLAM worse when it landed (commit efd50a8; 16 runs of 7-Scenes: SLAM 0.0511 -> 0.0529
-//! m), and it still does. Measured again with today's front and back end, by a temporary build
-//! with `map_reuse: true` and `cargo xtask spread` (7-Scenes, 12 start frames) and `spread
-//! --demo` (16 start frames); mean ATE RMSE, SLAM's online poses in brackets, and in how many
-//! paired runs SLAM beat odometry:
-//!
-//! | build | back-end quota | 7-Scenes odometry | 7-Scenes SLAM | demo odometry | demo SLAM |
-//! | --- | --- | --- | --- | --- | --- |
-//! | off (the default) | 2,500 (the board's) | 0.0382 m | 0.0331 m (0.0344); 12 of 12 | 3.0 mm | 3.4 mm (3.6); 7 of 16 |
-//! | on | 2,500 | 0.0375 m | 0.0355 m (0.0384); 9 of 12 | 3.0 mm | 6.1 mm (5.0); 0 of 16 |
-//! | off | 100,000 | 0.0382 m | 0.0357 m (0.0360); 9 of 12 | 3.0 mm | 3.4 mm (3.5); 6 of 16 |
-//! | on | 100,000 | 0.0375 m | 0.0354 m (0.0344); 7 of 12 | 3.0 mm | 4.4 mm (4.6); 1 of 16 |
-//!
-//! Odometry does not mind it; bundle adjustment does. A re-acquired landmark ties the new
-//! keyframe to old ones, so two levels of covisibility reach most of the map: on the demo's
-//! default run, 8 local BAs with windows growing to 26 keyframes instead of 10 with at most 20,
-//! and at the board's quota each takes tens of frames to solve, so its result lands late. With a
-//! quota that solves every window within its frame (100,000 units: not the board's), map reuse
-//! costs nothing on 7-Scenes (0.0354 against 0.0357 m), but that quota is itself worse there
-//! than the board's (0.0357 against 0.0331 m), and on the demo map reuse still loses (4.4
-//! against 3.4 mm). The likely reason, not measured: re-observing old landmarks pulls each new
-//! keyframe towards poses that carry the drift of their time, and a local window cannot spread
-//! that correction over the keyframes in between (a loop closure would; the core has none).
+//! It makes SLAM worse, on 7-Scenes and on the demo; odometry does not mind it. A re-acquired
+//! landmark ties the new keyframe to old ones, so two levels of covisibility reach most of the
+//! map: the local windows grow, and at the board's quota each takes longer to solve, so its result
+//! lands late. The figures: docs/decisions.md, "Map reuse off by default".
 
 use heapless::Vec;
 

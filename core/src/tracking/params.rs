@@ -10,10 +10,9 @@ use crate::pose::PoseParams;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrontendParams {
     /// Feature detection for new keyframes. Default: [`HessianParams::default`] with the
-    /// threshold lowered from 100 to 30 (at 100, QVGA Kinect frames of 7-Scenes give only ~40
-    /// landmarks per keyframe; at 30 about 130). Both pyramid levels: with the image level only
-    /// (`octaves` 1, about half the detector's work) 7-Scenes SLAM went 0.0331 -> 0.0362 m over
-    /// `cargo xtask spread`, better than odometry in 7 of 12 runs (`memory-budget.md`).
+    /// threshold lowered from 100 to 30 (why: docs/decisions.md, "Feature detection
+    /// threshold"), both pyramid levels (why: docs/decisions.md, "Detection on both pyramid
+    /// levels").
     pub hessian: HessianParams,
     /// Guide stage: `guide_landmarks` landmarks tracked from the motion-model prediction with a
     /// wide search. Default [`TrackParams::GUIDE`].
@@ -31,7 +30,8 @@ pub struct FrontendParams {
     /// inside the template).
     pub matching: MatchParams,
     /// Landmarks matched in the guide stage (and in a recovery), spread over a 4 x 3 grid.
-    /// Default 24.
+    /// Default 24 (16 measured and not adopted: docs/decisions.md, "Tracking levers measured and
+    /// not adopted").
     pub guide_landmarks: usize,
     /// The guides' pose is used when it has at least this many inliers. Default 8.
     pub min_guide_inliers: usize,
@@ -45,11 +45,8 @@ pub struct FrontendParams {
     /// Landmarks matched per frame at most, spread over an 8 x 6 grid (bounds the per-frame
     /// cost, about 30 k host instructions per landmark). Default 140, with
     /// `keyframe_min_inliers` scaled along (56 = 0.4 x 140): the largest count whose front end
-    /// meets the 6 M host-instruction median of issue 3 (5.84 M over 200 7-Scenes frames with
-    /// depth registered to colour, against 6.99 M at 200). It costs about 1 mm of 7-Scenes ATE
-    /// (means over 12 runs, odometry 0.0376 -> 0.0389 m, SLAM 0.0367 -> 0.0378 m, both bars a
-    /// centimetre away) and 0.4 mm of demo odometry ATE (0.0054 -> 0.0058 m); the measured
-    /// trade-off is in memory-budget.md ("Where the figures stand", instructions per frame).
+    /// meets issue 3's 6 M host-instruction median. Why this value: docs/decisions.md,
+    /// "Landmarks tracked per frame".
     pub max_tracked: usize,
     /// A keyframe that starts (or restarts) tracking needs at least this many landmarks.
     /// Default 30.
@@ -69,21 +66,9 @@ pub struct FrontendParams {
     /// with `costly_keyframe_octaves`. 0 makes every keyframe when due. Default 3.
     ///
     /// Why: a costly frame that also makes a keyframe (feature detection, new landmarks) was
-    /// the costliest frame on the board, 19.5 M instructions against the 15 M bar of issue 6
-    /// (`memory-budget.md`, "Where the figures stand"); with this rule and
-    /// `costly_keyframe_octaves` 1 the 1000-frame budget replay's maximum is 14.6 M. The
-    /// trajectories change; SLAM's accuracy does not on average, odometry's improves, so SLAM
-    /// leads odometry less often. Means of 48 runs each (`cargo xtask spread --seeds 3 [--skips
-    /// ...]`, 7-Scenes), before -> after:
-    ///
-    /// | start frames | odometry | SLAM | SLAM better than odometry |
-    /// | --- | --- | --- | --- |
-    /// | 0, 50, ..., 550 (default) | 0.0383 -> 0.0373 m | 0.0332 -> 0.0331 m | 48 -> 41 |
-    /// | 25, 75, ..., 575 | 0.0382 -> 0.0380 m | 0.0364 -> 0.0355 m | 33 -> 33 |
-    /// | 10, 60, ..., 560 | 0.0376 -> 0.0366 m | 0.0354 -> 0.0362 m | 34 -> 24 |
-    ///
-    /// Over the 144 runs: odometry 0.0380 -> 0.0373 m, SLAM 0.0350 -> 0.0349 m, SLAM's online
-    /// poses 0.0363 -> 0.0373 m, SLAM better than odometry in 98 runs instead of 115.
+    /// the costliest frame on the board, over issue 6's bar on instructions per frame; with
+    /// this rule it is not. Figures and the levers not adopted: docs/decisions.md, "Keyframes on
+    /// costly frames".
     ///
     /// [`FrontendWork::is_costly`]: super::frontend::FrontendWork::is_costly
     pub keyframe_max_put_off: u8,
@@ -119,8 +104,8 @@ pub struct FrontendParams {
     /// Seed of the pose estimator's random sampling (RANSAC). Default `0x5EED_F00D`.
     pub rng_seed: u64,
     /// Map reuse: at each keyframe, look for the map's untracked landmarks among its features
-    /// (see `frontend_reuse.rs`). Default `false`: measured, it makes SLAM worse on 7-Scenes and
-    /// on the demo (`frontend_reuse.rs` has the figures).
+    /// (see `map_reuse.rs`). Default `false`: it makes SLAM worse (why: docs/decisions.md,
+    /// "Map reuse off by default").
     pub map_reuse: bool,
 }
 
@@ -128,8 +113,7 @@ impl FrontendParams {
     /// The defaults, documented per field; matching and pose values equal their own `Default`s
     /// except where a field's documentation says otherwise (a unit test checks it).
     pub const DEFAULT: Self = Self {
-        // 30 instead of the detector's 100: at QVGA on 7-Scenes, 100 left ~40 landmarks per
-        // keyframe and lost 38 of the first 100 frames; 30 gives ~130 and loses none.
+        // 30 instead of the detector's 100: docs/decisions.md, "Feature detection threshold".
         hessian: HessianParams { threshold: 30.0, ..HessianParams::DEFAULT },
         guide: TrackParams::GUIDE,
         guide_wide: TrackParams::GUIDE_WIDE,

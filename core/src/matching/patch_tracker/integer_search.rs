@@ -71,9 +71,8 @@ impl<const N: usize> Quantized<N> {
     /// block 1, so `s * (q[p] + q[p - 1] 2^23)` adds to both at once, block 0's sum in the low
     /// 23 bits (its magnitude is at most `121 * 255 * 128 < 2^22` for `N <= 11`) and block 1's
     /// above them. On the Cortex-M4 at `N = 9` a template row of the three blocks compiles to
-    /// about 88 instructions (the compiler still spills some values to the stack) against about
-    /// 114 for three single products; over 1000 frames of 7-Scenes (`cargo xtask budgets`) the
-    /// pipeline median went from 6.36 to 6.23 M instructions, every output bit the same.
+    /// about 88 instructions against about 114 for three single products (docs/decisions.md,
+    /// "Batched search products").
     fn products(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<[i32; 3]> {
         if N * N * 255 * 128 >= 1 << (LANE_SHIFT - 1) {
             return None;
@@ -129,7 +128,8 @@ fn exact_f32(v: i64) -> f32 {
 }
 
 /// `v as f32` out of line: written inline, the compiler converted both ways and kept one, so the
-/// library call ran for every ZNCC (146 k instructions a frame on the Cortex-M4, 7-Scenes).
+/// library call ran for every ZNCC (docs/decisions.md, "Tracking code generation on the
+/// Cortex-M4").
 #[cold]
 #[inline(never)]
 fn wide_f32(v: i64) -> f32 {
@@ -283,8 +283,8 @@ pub(super) fn search<const N: usize, const S: usize>(
             })
             .unwrap_or(-1.0)
     };
-    // Kept only for the ambiguity test: filling its 1,156 bytes on every fine track too cost
-    // about 0.02 M instructions a frame on the Cortex-M4.
+    // Kept only for the ambiguity test: filling its 1,156 bytes on every fine track too costs
+    // instructions for nothing (docs/decisions.md, "Tracking code generation on the Cortex-M4").
     let mut scores =
         params.min_peak_margin.map(|_| [f32::NEG_INFINITY; MAX_SCORE_SIDE * MAX_SCORE_SIDE]);
     let k_max = r / step;
