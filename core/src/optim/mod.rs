@@ -124,6 +124,7 @@ mod pose_items;
 mod problem;
 mod solver;
 mod solver_state;
+mod variables;
 
 #[cfg(test)]
 mod tests;
@@ -132,8 +133,8 @@ use core::fmt;
 
 pub use model::{MAX_OBSERVATION_PX, MIN_OBSERVATION_DEPTH_M, MIN_OBSERVATION_PX};
 pub use params::BaParams;
-pub use problem::ObservationResidual;
 pub use solver::BundleAdjuster;
+pub use variables::ObservationResidual;
 
 /// A rig (pose variable) of the problem held; valid until [`BundleAdjuster::clear`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -18,7 +18,7 @@ use super::linalg::{
 };
 use super::model::pose_row;
 use super::solver::BundleAdjuster;
-use super::solver_state::{Budget, PointAcc};
+use super::solver_state::{Budget, PassKind, PointAcc, PointCursor};
 
 /// Relative floor added to each diagonal entry before scaling by lambda (as tracking's), so a
 /// direction the data do not see still gets damped.
@@ -26,27 +26,6 @@ pub(super) const DIAG_FLOOR: f32 = 1.0e-6;
 /// Smallest pivot-to-diagonal ratio of a point block that is inverted; below it the point is
 /// held fixed for the iteration (a point seen once without depth, or from one direction only).
 const POINT_MIN_PIVOT_RATIO: f32 = 1.0e-5;
-
-/// Which observation pass.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum PassKind {
-    Linearize,
-    Product,
-    Trial,
-    Apply,
-}
-
-/// Position in a point pass: the point, the sweep (0, 1; 2 = point end) and the observation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) struct PointCursor {
-    point: u16,
-    sweep: u8,
-    obs: u16,
-}
-
-impl PointCursor {
-    pub(super) const START: Self = Self { point: 0, sweep: 0, obs: 0 };
-}
 
 /// `y += s x`.
 fn axpy3(y: &mut Vec3, s: f32, x: &Vec3) {

@@ -20,10 +20,10 @@
 //! [`State`], so cutting the sequence anywhere gives the same arithmetic in the same order.
 
 use super::model::Model;
-use super::observation_passes::{PassKind, PointCursor};
 use super::problem::Problem;
 use super::solver_state::{
-    Budget, LAMBDA_MAX, LAMBDA_MIN, Pcg, Phase, PointAcc, State, Sum, Workspace,
+    Budget, LAMBDA_MAX, LAMBDA_MIN, PassKind, Pcg, Phase, PointAcc, PointCursor, State, Sum,
+    Workspace,
 };
 use super::{BaError, BaParams, BaStatus, BaSummary, Termination};
 use crate::geometry::PinholeCamera;

@@ -5,11 +5,31 @@ use super::BaParams;
 use super::Termination;
 use super::linalg::{PoseMatrix, StoredPose, Sym3, Sym6, Vec3, Vec6};
 use super::model::Model;
-use super::observation_passes::PointCursor;
 
 /// Damping bounds (as tracking's).
 pub(super) const LAMBDA_MIN: f32 = 1.0e-7;
 pub(super) const LAMBDA_MAX: f32 = 1.0e6;
+
+/// Which observation pass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum PassKind {
+    Linearize,
+    Product,
+    Trial,
+    Apply,
+}
+
+/// Position in a point pass: the point, the sweep (0, 1; 2 = point end) and the observation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct PointCursor {
+    pub(super) point: u16,
+    pub(super) sweep: u8,
+    pub(super) obs: u16,
+}
+
+impl PointCursor {
+    pub(super) const START: Self = Self { point: 0, sweep: 0, obs: 0 };
+}
 
 /// Where the solver is. Item cursors count rigs or cameras; point cursors walk observations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
