@@ -1,4 +1,4 @@
-//! The small-image rotation (`tracking::sbi`) against 7-Scenes' ground truth: the front end's
+//! The small-image rotation (`pose::small_image_rotation`) against 7-Scenes' ground truth: the front end's
 //! iteration settings ([`RotationParams::DEFAULT`]) are as close to the truth as Gauss-Newton
 //! converged on both levels ([`RotationParams::CONVERGED`]), because the estimate's error comes
 //! from its pure-rotation model (the camera also translates), not from the last iterations.

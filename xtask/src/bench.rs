@@ -55,7 +55,7 @@ use crate::stats::{Stats, thousands};
 /// A pattern is one or more alternatives separated by `|`. An alternative is a glob (`*` matches
 /// any run of characters, `::` included) that must match the *end* of a function's demangled
 /// name, starting at the beginning of the name or right after `::`, `<` or a space: so
-/// `ransac::track_pose` matches `ferroslam_core::tracking::ransac::track_pose` but not
+/// `ransac::track_pose` matches `ferroslam_core::pose::ransac::track_pose` but not
 /// `...::retrack_pose` nor `...::track_pose_fast`. Generic parameters demangle as `<_,_>`; write
 /// `Frontend<*>::process`.
 ///
@@ -78,11 +78,14 @@ const STAGES: &[(&str, &str)] = &[
     ),
     ("keyframe", "Frontend<*>::make_keyframe"),
     ("matching", "Frontend<*>::match_landmarks"),
-    ("track_patch", "matching::track::track_patch"),
+    ("track_patch", "matching::patch_tracker::track_patch"),
     ("bank", "matching::region::match_region"),
-    ("guide_pose", "frontend_match::guide_pose"),
-    ("pose", "tracking::ransac::track_pose"),
-    ("small_image", "sbi::SmallImage::build|sbi::estimate_rotation"),
+    ("guide_pose", "landmark_matching::guide_pose"),
+    ("pose", "pose::ransac::track_pose"),
+    (
+        "small_image",
+        "small_image_rotation::SmallImage::build|small_image_rotation::estimate_rotation",
+    ),
 ];
 
 /// The stage that tells frames which ran the detector (keyframe attempts) from tracking-only
@@ -587,10 +590,10 @@ mod tests {
         assert!(pattern_matches("*::process", process));
         assert!(!pattern_matches("Frontend<*>::proc", process));
         assert!(!pattern_matches("rontend<*>::process", process));
-        let pose = "ferroslam_core::tracking::ransac::track_pose";
+        let pose = "ferroslam_core::pose::ransac::track_pose";
         assert!(pattern_matches("ransac::track_pose", pose));
         assert!(pattern_matches("nothing|track_pose", pose));
-        assert!(!pattern_matches("tracking::track_pose", pose));
+        assert!(!pattern_matches("pose::track_pose", pose));
         assert!(!pattern_matches("ransac::track_pose", "x::ransac::retrack_pose"));
         assert!(pattern_matches(
             "GridBuckets::*",

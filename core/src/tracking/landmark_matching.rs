@@ -1,10 +1,13 @@
 //! The front end's matching stages (guides, bank recovery, final stage) and the local map's
 //! per-frame bookkeeping; see the module documentation of `frontend.rs`.
 
+use heapless::Vec;
 use nalgebra::Point2;
 
-use super::frontend::{Frontend, GuideStage};
+use super::GuideStage;
+use super::frontend::Frontend;
 use super::select::{Candidate, spread};
+use crate::config::capacity;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::Map;
@@ -12,7 +15,9 @@ use crate::matching::{
     MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
 };
 use crate::pose::small_image_rotation::estimate_rotation;
-use crate::pose::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
+use crate::pose::{
+    Correspondence, MAX_CORRESPONDENCES, PoseEstimate, PoseParams, TrackingRng, track_pose,
+};
 
 /// Grid the guides are spread over (columns, rows).
 const GUIDE_GRID: (usize, usize) = (4, 3);
@@ -84,6 +89,23 @@ pub(super) struct MatchSummary {
     pub estimate: Option<PoseEstimate>,
 }
 
+/// The matching stages' scratch: the landmarks tried (`candidates`), and the correspondences
+/// found with the local-map index of each (`sources`). After [`Frontend::match_landmarks`] it
+/// holds the winning final stage, which the keyframe and the local map's bookkeeping read.
+#[derive(Debug, Clone)]
+pub(super) struct MatchScratch {
+    pub(super) candidates: Vec<Candidate, { capacity::MAX_TRACKED_LANDMARKS }>,
+    pub(super) correspondences: Vec<Correspondence, MAX_CORRESPONDENCES>,
+    /// Local-map index of each correspondence.
+    pub(super) sources: Vec<u16, MAX_CORRESPONDENCES>,
+}
+
+impl MatchScratch {
+    pub(super) const fn new() -> Self {
+        Self { candidates: Vec::new(), correspondences: Vec::new(), sources: Vec::new() }
+    }
+}
+
 /// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.
 #[derive(Clone, Copy)]
 enum Matcher<'a> {
@@ -119,13 +141,13 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
     ) -> MatchSummary {
         let p = self.params;
         // Counts are at most 512: exact in f32.
-        let previous = self.previous_inliers as f32;
+        let previous = self.recent.inliers as f32;
         let mut best: Option<(Pose, GuideStage, usize, PoseEstimate)> = None;
         let mut last_start = None;
         let mut guides = 0;
         // The small-image rotation's prediction, computed once when first needed.
         let mut rotated: Option<Option<Pose>> = None;
-        let turning = self.previous_t_cw.is_some_and(|prev| {
+        let turning = self.recent.last_t_cw().is_some_and(|prev| {
             (predicted_t_cw * prev.inverse()).rotation.angle() > GUIDES_FIRST_TURN_RAD
         });
         let order = if turning { GUIDES_FIRST } else { ATTEMPTS };
@@ -157,11 +179,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     // The guides replace the scratch the last final stage left.
                     last_start = None;
                     self.collect_candidates(cam, map, &prediction, matcher.margin());
-                    spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
+                    spread(&mut self.scratch.candidates, size, GUIDE_GRID, p.guide_landmarks);
                     self.match_candidates(frame, cam, map, &prediction, matcher);
                     self.work.guide_runs = self.work.guide_runs.saturating_add(1);
-                    guides = self.correspondences.len();
-                    let corrs = &self.correspondences;
+                    guides = self.scratch.correspondences.len();
+                    let corrs = &self.scratch.correspondences;
                     match guide_pose(cam, corrs, &prediction, &p, &mut self.rng) {
                         Some(t_cw) => (t_cw, stage),
                         None => continue,
@@ -185,7 +207,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             }
         }
         let Some((start, stage, matches, est)) = best else {
-            let matches = self.correspondences.len();
+            let matches = self.scratch.correspondences.len();
             return MatchSummary { matches, guides, stage: GuideStage::None, estimate: None };
         };
         if last_start == Some(start) {
@@ -208,23 +230,26 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.work.final_stages = self.work.final_stages.saturating_add(1);
         let fine = Matcher::Patch(&p.track);
         self.collect_candidates(cam, map, start, fine.margin());
-        spread(&mut self.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
+        spread(&mut self.scratch.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
         self.match_candidates(frame, cam, map, start, fine);
-        let matches = self.correspondences.len();
+        let matches = self.scratch.correspondences.len();
         let estimate = (matches >= p.min_matches)
-            .then(|| track_pose(cam, &self.correspondences, Some(start), &p.pose, &mut self.rng))
+            .then(|| {
+                track_pose(cam, &self.scratch.correspondences, Some(start), &p.pose, &mut self.rng)
+            })
             .and_then(Result::ok)
             .filter(|est| est.num_inliers >= p.min_inliers);
         (matches, estimate)
     }
 
     /// The previous frame's pose turned by the rotation the small blurry images show between it
-    /// and this frame (see [`super::sbi`]), starting from the rotation `predicted_t_cw` implies.
+    /// and this frame (see [`crate::pose::small_image_rotation`]), starting from the rotation `predicted_t_cw` implies.
     fn rotation_prediction(&mut self, cam: &PinholeCamera, predicted_t_cw: &Pose) -> Option<Pose> {
-        let prev = self.previous_t_cw?;
+        let prev = self.recent.last_t_cw()?;
         self.work.rotation_estimated = true;
         let initial = (predicted_t_cw * prev.inverse()).rotation;
-        let r_cp = estimate_rotation(&self.small_previous, &self.small_current, cam, &initial)?;
+        let small = &self.recent;
+        let r_cp = estimate_rotation(&small.small_previous, &small.small_current, cam, &initial)?;
         Some(Pose::from_parts(nalgebra::Translation3::identity(), r_cp) * prev)
     }
 
@@ -237,7 +262,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         t_cw: &Pose,
         margin: f32,
     ) {
-        self.candidates.clear();
+        self.scratch.candidates.clear();
         for (i, t) in self.local.items().iter().enumerate() {
             let Some(lm) = map.landmark(t.id) else { continue };
             let Some(uv) = cam.project_world(t_cw, &lm.p_w) else { continue };
@@ -246,7 +271,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             }
             // At most MAX_TRACKED_LANDMARKS (< 65,536) items: the index fits.
             let c = Candidate::new(i as u16, uv, t.found);
-            if self.candidates.push(c).is_err() {
+            if self.scratch.candidates.push(c).is_err() {
                 break;
             }
         }
@@ -262,12 +287,12 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         t_cw: &Pose,
         matcher: Matcher<'_>,
     ) {
-        self.correspondences.clear();
-        self.sources.clear();
+        self.scratch.correspondences.clear();
+        self.scratch.sources.clear();
         let (zmin, zmax) = (self.params.sensor().depth_min_m, self.params.sensor().depth_max_m);
         // One tracking workspace for all the candidates, not one zeroed per track.
         let mut scratch = TrackScratch::new();
-        for c in &self.candidates {
+        for c in &self.scratch.candidates {
             let Some(t) = self.local.items().get(usize::from(c.index)) else { continue };
             let Some((template, centre)) = t.template() else { continue };
             let affine = t.warp_to(cam, t_cw);
@@ -301,11 +326,11 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 .filter(|&z| z >= zmin && z <= zmax);
             let Some(lm) = map.landmark(t.id) else { continue };
             let corr = Correspondence { p_w: lm.p_w, uv: Point2::new(u, v), depth_m };
-            if !corr.is_valid() || self.correspondences.push(corr).is_err() {
+            if !corr.is_valid() || self.scratch.correspondences.push(corr).is_err() {
                 continue;
             }
             // Same capacity as the correspondences: cannot fail after their push succeeded.
-            let _ = self.sources.push(c.index);
+            let _ = self.scratch.sources.push(c.index);
         }
     }
 
@@ -318,14 +343,16 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         est: &PoseEstimate,
     ) {
         let items = self.local.items_mut();
-        for c in &self.candidates {
+        for c in &self.scratch.candidates {
             if let Some(t) = items.get_mut(usize::from(c.index)) {
                 t.visible = t.visible.saturating_add(1);
             }
         }
         let t_wc = est.t_cw.inverse();
         let max_n = self.params.max_fused_measurements;
-        for (k, (corr, &src)) in self.correspondences.iter().zip(&self.sources).enumerate() {
+        for (k, (corr, &src)) in
+            self.scratch.correspondences.iter().zip(&self.scratch.sources).enumerate()
+        {
             let Some(t) = items.get_mut(usize::from(src)) else { continue };
             if !est.inliers.contains(k) {
                 continue;

@@ -58,7 +58,7 @@ fn insert(set: &mut [u32], i: usize) {
 }
 
 impl<const W: usize, const H: usize> Frontend<W, H> {
-    /// Re-acquires map landmarks the local map does not hold among `self.features` (detected in
+    /// Re-acquires map landmarks the local map does not hold among `self.detection.features` (detected in
     /// `frame`, the new keyframe `kf` at `t_cw`); marks the features used in `used`; returns how
     /// many landmarks were re-acquired.
     pub(super) fn reacquire<const K: usize, const L: usize>(
@@ -104,7 +104,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
             };
             let tolerance = REACQUIRE_DEPTH_TOLERANCE.0 + REACQUIRE_DEPTH_TOLERANCE.1 * z;
             let (mut best, mut second) = ((u32::MAX, usize::MAX, 0.0f32), u32::MAX);
-            for (i, f) in self.features.iter().enumerate() {
+            for (i, f) in self.detection.features.iter().enumerate() {
                 let (dx, dy) = (f.x - uv.x, f.y - uv.y);
                 if dx * dx + dy * dy > REACQUIRE_RADIUS_PX * REACQUIRE_RADIUS_PX
                     || contains(used, i)
@@ -136,7 +136,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         let mut local = self.local.insertions();
         let mut n = 0;
         for &(id, i, zf) in &found {
-            let Some(&f) = self.features.get(i) else { continue };
+            let Some(&f) = self.detection.features.get(i) else { continue };
             let Some(obs) = Observation::new(id, (f.x, f.y), Some(zf)) else { continue };
             if !local.make_room(now) || map.add_observation(kf, obs).is_err() {
                 break;

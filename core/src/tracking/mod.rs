@@ -2,10 +2,12 @@
 //! tracking the landmarks of its local map with the patch tracker ([`crate::matching`]), estimating
 //! the pose with [`crate::pose`], and adding keyframes and landmarks to the [`crate::map`].
 //!
-//! Files by concern: `frontend.rs` (the per-frame pipeline and its state), `landmark_matching.rs`
-//! (the guide and final stages), `keyframe.rs` (keyframes and new landmarks), `map_reuse.rs`
-//! (re-acquiring map landmarks), `local_map.rs` (the tracked landmarks and their templates),
-//! `params.rs` (every tunable), `select.rs` (spreading candidates over the image).
+//! Files by concern, each owning its part of the front end's state: `frontend.rs` (the per-frame
+//! pipeline and what it keeps of recent frames), `landmark_matching.rs` (the guide and final
+//! stages, and their scratch), `keyframe.rs` (the keyframe rule, detection, keyframes and new
+//! landmarks), `map_reuse.rs` (re-acquiring map landmarks), `local_map.rs` (the tracked landmarks
+//! and their templates), `result.rs` (what a frame gives back), `params.rs` (every tunable),
+//! `select.rs` (spreading candidates over the image).
 
 pub mod frontend;
 mod keyframe;
@@ -13,13 +15,14 @@ mod landmark_matching;
 pub mod local_map;
 mod map_reuse;
 mod params;
+mod result;
 mod select;
 
-pub use frontend::{
-    FrameResult, Frontend, FrontendError, FrontendState, FrontendStats, FrontendWork, GuideStage,
-    QvgaFrontend, VgaFrontend,
-};
+pub use frontend::{Frontend, QvgaFrontend, VgaFrontend};
 pub use local_map::{
     BoardLocalMap, Insertions, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine,
 };
 pub use params::FrontendParams;
+pub use result::{
+    FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork, GuideStage,
+};

@@ -10,6 +10,7 @@ use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
 use super::*;
 use crate::image::{DepthView, GrayView, ImageView};
+use crate::tracking::keyframe::decide_keyframe;
 
 const W: usize = 320;
 const H: usize = 240;
