@@ -59,7 +59,7 @@
 //! # Memory
 //!
 //! Everything is inline, no heap: the Hessian detector, the local map
-//! ([`capacity::MAX_TRACKED_LANDMARKS`] templates of 16 x 16 pixels), the feature, candidate and
+//! ([`MAX_TRACKED_LANDMARKS`](crate::config::capacity::MAX_TRACKED_LANDMARKS) templates of 16 x 16 pixels), the feature, candidate and
 //! correspondence scratch. The map is the caller's (so the back end can share it). Sizes are in
 //! `memory-budget.md` (unit-tested). [`Frontend::new`] is `const`: place it in a `static` on the
 //! board, box it on a host.
@@ -84,7 +84,7 @@ pub type QvgaFrontend = Frontend<320, 240>;
 pub type VgaFrontend = Frontend<640, 480>;
 
 /// The front end for images up to `W` x `H` (see the module documentation). Its state is
-/// grouped by the concern that owns it: the recent past ([`Recent`], here), the keyframe rule
+/// grouped by the concern that owns it: the recent past (`Recent`, here), the keyframe rule
 /// and the detector (`keyframe.rs`), the matching scratch (`landmark_matching.rs`) and the local
 /// map (`local_map.rs`).
 #[derive(Debug, Clone)]

@@ -70,7 +70,7 @@ pub struct FrontendParams {
     /// this rule it is not. Figures and the levers not adopted: docs/decisions.md, "Keyframes on
     /// costly frames".
     ///
-    /// [`FrontendWork::is_costly`]: super::frontend::FrontendWork::is_costly
+    /// [`FrontendWork::is_costly`]: super::FrontendWork::is_costly
     pub keyframe_max_put_off: u8,
     /// Pyramid octaves of the feature detection when a keyframe is made on a costly frame (the
     /// put-offs are used up): the image level alone costs about half the detection of both.
