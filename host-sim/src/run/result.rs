@@ -80,6 +80,11 @@ pub struct BackendReport {
     pub reference_fraction_of_points: f64,
     /// Work units spent, problem building included.
     pub work_units: u64,
+    /// Back-end steps taken (building a problem, solving, writing a result back).
+    pub steps: u64,
+    /// Of those, the solve steps that ran beside the front end's tracking of the next frame
+    /// (threaded and realtime schedules; `Slam::overlap`).
+    pub steps_beside_tracking: u64,
 }
 
 /// The tracker's result over a whole source.

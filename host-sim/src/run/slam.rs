@@ -133,6 +133,7 @@ impl<P: ProfileTypes> Stepper<'_, P> {
                 Schedule::Sequential => None,
             };
             if let Some(result) = tracked {
+                self.record.steps_beside_tracking += 1;
                 return Ok(result);
             }
             self.step()?;
@@ -311,6 +312,8 @@ struct Record {
     windows: Vec<(usize, usize)>,
     /// The most keyframes the map held at an update.
     map_keyframes_max: usize,
+    /// Back-end steps that ran beside the front end's tracking of a frame.
+    steps_beside_tracking: u64,
 }
 
 impl Record {
@@ -374,5 +377,7 @@ fn backend_report<P: ProfileTypes>(
             0.0
         },
         work_units: b.work_units,
+        steps: b.steps,
+        steps_beside_tracking: record.steps_beside_tracking,
     }
 }
