@@ -8,6 +8,8 @@
 //!   paper's Eq. 1-2 with Jacobians, depth back-projection, Horn/Umeyama alignment.
 //! - [`image`]: borrowed image views with stride, 2x downsampling, the image variation `v_m` and the
 //!   total variation `W(I)` of the paper's Eq. 3.
+//! - `grid_spread` (inside the crate): the cells of an image grid and the rank-major order that
+//!   spreads features, ROIs and tracked landmarks evenly over the image.
 //! - [`features`]: the Fast-Hessian detector on a rolling integral buffer, and grid bucketing.
 //! - [`matching`]: region matching under a bank of affine transforms, refined by affine
 //!   Lucas-Kanade, with a forward-backward check.
@@ -40,6 +42,7 @@ pub mod config;
 pub mod features;
 pub mod frame;
 pub mod geometry;
+mod grid_spread;
 pub mod image;
 pub mod map;
 pub mod matching;

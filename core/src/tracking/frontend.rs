@@ -69,11 +69,11 @@ use core::fmt;
 use heapless::Vec;
 
 use super::local_map::BoardLocalMap;
-use super::select::Candidate;
 use crate::config::capacity;
 use crate::features::{FeatureVec, HessianDetector};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
+use crate::grid_spread::Candidate;
 use crate::map::{KeyFrameId, Map};
 use crate::pose::small_image_rotation::SmallImage;
 use crate::pose::{Correspondence, MAX_CORRESPONDENCES, MotionModel, TrackingRng};

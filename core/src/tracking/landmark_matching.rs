@@ -4,9 +4,9 @@
 use nalgebra::Point2;
 
 use super::frontend::{Frontend, GuideStage};
-use super::select::{Candidate, spread};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
+use crate::grid_spread::{Candidate, Grid, spread};
 use crate::map::Map;
 use crate::matching::{
     MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
@@ -157,7 +157,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     // The guides replace the scratch the last final stage left.
                     last_start = None;
                     self.collect_candidates(cam, map, &prediction, matcher.margin());
-                    spread(&mut self.candidates, size, GUIDE_GRID, p.guide_landmarks);
+                    spread(&mut self.candidates, &Grid::with_cells(size, GUIDE_GRID));
+                    self.candidates.truncate(p.guide_landmarks);
                     self.match_candidates(frame, cam, map, &prediction, matcher);
                     self.work.guide_runs = self.work.guide_runs.saturating_add(1);
                     guides = self.correspondences.len();
@@ -208,7 +209,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.work.final_stages = self.work.final_stages.saturating_add(1);
         let fine = Matcher::Patch(&p.track);
         self.collect_candidates(cam, map, start, fine.margin());
-        spread(&mut self.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
+        spread(&mut self.candidates, &Grid::with_cells(frame.gray.size(), TRACK_GRID));
+        self.candidates.truncate(p.max_tracked);
         self.match_candidates(frame, cam, map, start, fine);
         let matches = self.correspondences.len();
         let estimate = (matches >= p.min_matches)

@@ -5,7 +5,7 @@
 //! Files by concern: `frontend.rs` (the per-frame pipeline and its state), `landmark_matching.rs`
 //! (the guide and final stages), `keyframe.rs` (keyframes and new landmarks), `map_reuse.rs`
 //! (re-acquiring map landmarks), `local_map.rs` (the tracked landmarks and their templates),
-//! `params.rs` (every tunable), `select.rs` (spreading candidates over the image).
+//! `params.rs` (every tunable). The candidates are spread over the image by `crate::grid_spread`.
 
 pub mod frontend;
 mod keyframe;
@@ -13,7 +13,6 @@ mod landmark_matching;
 pub mod local_map;
 mod map_reuse;
 mod params;
-mod select;
 
 pub use frontend::{
     FrameResult, Frontend, FrontendError, FrontendState, FrontendStats, FrontendWork, GuideStage,
