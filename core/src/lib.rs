@@ -49,5 +49,7 @@ pub mod matching;
 pub mod optim;
 pub mod pose;
 pub mod system;
+#[cfg(test)]
+mod test_rng;
 pub mod tracking;
 pub mod wire;
