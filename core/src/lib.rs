@@ -39,6 +39,8 @@
 //!   the total variation `W(I)` of the paper's Eq. 3.
 //! - [`geometry`]: SE(3) poses on [`nalgebra::Isometry3<f32>`], exp/log, the pinhole camera of the
 //!   paper's Eq. 1-2 with Jacobians, depth back-projection, Horn/Umeyama alignment.
+//! - `grid_spread` (inside the crate): the cells of an image grid and the rank-major order that
+//!   spreads features, ROIs and tracked landmarks evenly over the image.
 //! - [`config`]: the ground floor: every capacity, the profiles ([`config::Qvga`] is the reference
 //!   board's), the sensor's measurement model and the shared defaults; it imports nothing.
 //!
@@ -60,11 +62,14 @@ pub mod config;
 pub mod features;
 pub mod frame;
 pub mod geometry;
+mod grid_spread;
 pub mod image;
 pub mod map;
 pub mod matching;
 pub mod optim;
 pub mod pose;
 pub mod system;
+#[cfg(test)]
+mod test_rng;
 pub mod tracking;
 pub mod wire;

@@ -1,7 +1,10 @@
-//! Grid bucketing: every cell keeps its strongest candidates, then features are taken in rounds so
-//! that they spread over the frame (the rule is documented on [`super::HessianParams::per_cell_cap`]).
+//! Grid bucketing: every cell keeps its strongest candidates while they stream in, then features
+//! are taken in rank-major rounds so that they spread over the frame (the rule is documented on
+//! [`super::HessianParams::per_cell_cap`]). The grid, the per-cell lists and the order are
+//! `crate::grid_spread`'s; the cap, the streaming and the last round's rule are the detector's.
 
 use super::{Feature, FeatureError, FeatureVec, HessianParams};
+use crate::grid_spread::{Grid, insert_best_first};
 use core::cmp::Ordering;
 
 /// Most grid cells the bucketing supports (e.g. 8x8).
@@ -83,41 +86,39 @@ impl GridBuckets {
         self.height = height.max(1);
     }
 
-    fn cell_of(&self, f: &Feature) -> usize {
-        // Saturating float-to-int casts; positions are inside the image.
-        let cx = ((f.x + 0.5) as usize).min(self.width - 1) * self.cols / self.width;
-        let cy = ((f.y + 0.5) as usize).min(self.height - 1) * self.rows / self.height;
-        cy * self.cols + cx
+    fn grid(&self) -> Grid {
+        Grid::with_cells((self.width, self.height), (self.cols, self.rows))
     }
 
-    /// Offers a candidate to its cell, which keeps its `cap` best in [`rank`] order.
+    /// The cell of the pixel nearest `f` (saturating float-to-int casts; positions are inside the
+    /// image).
+    fn cell_of(&self, f: &Feature) -> usize {
+        self.grid().cell_of_pixel(((f.x + 0.5) as usize, (f.y + 0.5) as usize))
+    }
+
+    /// Offers a candidate to its cell, which keeps its `cap` best in [`rank`] order (ties: the
+    /// earlier one).
     pub(super) fn insert(&mut self, f: &Feature) {
         let cell = self.cell_of(f);
         let (Some(slots), Some(count)) = (self.cells.get_mut(cell), self.counts.get_mut(cell))
         else {
             return;
         };
-        let n = usize::from(*count);
-        let live = slots.get(..n).unwrap_or(&[]);
-        let pos = live.iter().position(|c| rank(f, &c.to_feature()) == Ordering::Less).unwrap_or(n);
-        if pos >= self.cap {
-            return;
-        }
-        let end = n.min(self.cap - 1);
-        // Shift the weaker ones down by one (the last falls off when the cell is full).
-        if let Some(tail) = slots.get_mut(pos..=end) {
-            tail.rotate_right(1);
-            if let Some(first) = tail.first_mut() {
-                *first = Candidate::from_feature(f);
-            }
-        }
-        *count = (end + 1) as u8;
+        let Some(slots) = slots.get_mut(..self.cap) else { return };
+        let item = Candidate::from_feature(f);
+        let n = insert_best_first(slots, usize::from(*count), item, |c| {
+            rank(f, &c.to_feature()) == Ordering::Less
+        });
+        // At most `cap <= MAX_PER_CELL` items.
+        *count = n as u8;
     }
 
-    /// The selection rounds into `out` (cleared first), at most `max` features.
+    /// The selection rounds into `out` (cleared first), at most `max` features: round `k` takes
+    /// the `k`-th strongest of every cell that has one, cells in raster order (rank-major order);
+    /// the last round, when it does not fit, its strongest first.
     pub(super) fn select(&self, max: usize, out: &mut FeatureVec) -> Result<(), FeatureError> {
         out.clear();
-        let cells = self.cols * self.rows;
+        let cells = self.grid().cells();
         let max = max.min(out.capacity());
         for k in 0..self.cap {
             let in_round = (0..cells).filter(|&c| self.kth(c, k).is_some()).count();
@@ -148,7 +149,7 @@ impl GridBuckets {
         Some(self.cells.get(cell)?.get(k)?.to_feature())
     }
 
-    /// Takes the `left` strongest of round `k` (cells <= 64, so a bit mask marks the taken ones).
+    /// Takes the `left` strongest of round `k`, strongest first (ties: the earlier cell).
     fn take_strongest_of_round(
         &self,
         k: usize,
@@ -156,19 +157,20 @@ impl GridBuckets {
         left: usize,
         out: &mut FeatureVec,
     ) -> Result<(), FeatureError> {
-        let mut taken: u64 = 0;
-        for _ in 0..left {
-            let mut best: Option<(usize, Feature)> = None;
-            for c in (0..cells).filter(|&c| taken & (1u64 << c) == 0) {
-                if let Some(f) = self.kth(c, k)
-                    && best.as_ref().is_none_or(|(_, b)| rank(&f, b) == Ordering::Less)
-                {
-                    best = Some((c, f));
-                }
+        // The round's cells, strongest first: one item per cell, so at most MAX_GRID_CELLS (< 256).
+        let mut strongest = [0u8; MAX_GRID_CELLS];
+        let list = strongest.get_mut(..left.min(MAX_GRID_CELLS)).unwrap_or_default();
+        let mut n = 0;
+        for c in 0..cells.min(MAX_GRID_CELLS) {
+            let Some(f) = self.kth(c, k) else { continue };
+            n = insert_best_first(list, n, c as u8, |&other| {
+                self.kth(usize::from(other), k).is_some_and(|o| rank(&f, &o) == Ordering::Less)
+            });
+        }
+        for &c in list.get(..n).unwrap_or_default() {
+            if let Some(f) = self.kth(usize::from(c), k) {
+                out.push(f).map_err(|_| FeatureError::InvalidParams { field: "max_features" })?;
             }
-            let Some((c, f)) = best else { break };
-            taken |= 1u64 << c;
-            out.push(f).map_err(|_| FeatureError::InvalidParams { field: "max_features" })?;
         }
         Ok(())
     }

@@ -14,6 +14,7 @@ use super::filter::{
 use super::hessian::{Grid, candidate, last_sample, plane};
 use super::*;
 use crate::image::{GrayView, GrayViewMut, downsample_gray_2x};
+use crate::test_rng::TestRng;
 use std::boxed::Box;
 use std::vec;
 use std::vec::Vec;
@@ -117,15 +118,11 @@ fn blobs(w: usize, h: usize, spots: &[(f32, f32, f32, f32)]) -> Vec<u8> {
     img
 }
 
-/// Deterministic texture: random 4x4-pixel blocks (an LCG), everywhere.
-fn texture(w: usize, h: usize, seed: u32) -> Vec<u8> {
-    let mut state = seed;
-    let blocks: Vec<u8> = (0..(w / 4 + 1) * (h / 4 + 1))
-        .map(|_| {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (state >> 24) as u8
-        })
-        .collect();
+/// Deterministic texture: random 4x4-pixel blocks, everywhere.
+fn texture(w: usize, h: usize, seed: u64) -> Vec<u8> {
+    let mut rng = TestRng::new(seed);
+    let blocks: Vec<u8> =
+        (0..(w / 4 + 1) * (h / 4 + 1)).map(|_| (rng.next_u32() >> 24) as u8).collect();
     (0..w * h).map(|k| blocks[(k / w / 4) * (w / 4 + 1) + (k % w) / 4]).collect()
 }
 

@@ -15,7 +15,8 @@ use nalgebra::{Isometry3, Point2, Point3, SMatrix, SVector, Vector3, Vector6};
 use super::camera::PinholeCamera;
 use super::se3::{Pose, se3_exp, se3_left_jacobian, se3_left_jacobian_inv, se3_log};
 use super::so3::{so3_exp, so3_left_jacobian, so3_left_jacobian_inv, so3_log};
-use super::test_support::{XorShift, random_rotation_vector, random_twist};
+use super::test_support::{random_rotation_vector, random_twist, random_vector3};
+use crate::test_rng::TestRng;
 
 /// A function with an analytic Jacobian, and how to sample and difference it.
 trait JacobianCase<const N: usize, const M: usize> {
@@ -28,7 +29,7 @@ trait JacobianCase<const N: usize, const M: usize> {
     /// What stays fixed while the input varies (a camera, a pose, a linearization point).
     type Context;
     /// The `i`-th sample: context and the input at which to differentiate.
-    fn sample(rng: &mut XorShift, i: usize) -> (Self::Context, SVector<f64, N>);
+    fn sample(rng: &mut TestRng, i: usize) -> (Self::Context, SVector<f64, N>);
     /// The central-difference step at `x`.
     fn step(_ctx: &Self::Context, _x: &SVector<f64, N>) -> f64 {
         Self::STEP
@@ -46,7 +47,7 @@ trait JacobianCase<const N: usize, const M: usize> {
 /// Checks `C`'s analytic Jacobian against central differences at `samples` points; returns the
 /// worst relative error seen.
 fn check<C: JacobianCase<N, M>, const N: usize, const M: usize>(samples: usize) -> f64 {
-    let mut rng = XorShift::new(0x00C0_FFEE);
+    let mut rng = TestRng::new(0x00C0_FFEE);
     let mut worst = 0.0f64;
     for i in 0..samples {
         let (ctx, x0) = C::sample(&mut rng, i);
@@ -93,7 +94,7 @@ fn uv64(uv: Point2<f32>) -> SVector<f64, 2> {
 }
 
 /// A camera with random intrinsics around a VGA sensor's.
-fn random_camera(rng: &mut XorShift) -> PinholeCamera {
+fn random_camera(rng: &mut TestRng) -> PinholeCamera {
     let f = rng.uniform(200.0, 800.0);
     let fy = f * rng.uniform(0.95, 1.05);
     let (cx, cy) = (rng.uniform(300.0, 340.0), rng.uniform(220.0, 260.0));
@@ -101,7 +102,7 @@ fn random_camera(rng: &mut XorShift) -> PinholeCamera {
 }
 
 /// A camera-frame point in a 100-degree-wide frustum, 0.3 to 6 m deep.
-fn random_point_in_view(rng: &mut XorShift) -> Vector3<f64> {
+fn random_point_in_view(rng: &mut TestRng) -> Vector3<f64> {
     let z = rng.uniform(0.3, 6.0);
     Vector3::new(z * rng.uniform(-0.6, 0.6), z * rng.uniform(-0.6, 0.6), z)
 }
@@ -112,7 +113,7 @@ impl JacobianCase<3, 2> for ProjectWrtPoint {
     const REL_TOL: f64 = 1e-3;
     const STEP: f64 = 1.0 / 1024.0;
     type Context = PinholeCamera;
-    fn sample(rng: &mut XorShift, _: usize) -> (PinholeCamera, SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, _: usize) -> (PinholeCamera, SVector<f64, 3>) {
         (random_camera(rng), random_point_in_view(rng))
     }
     /// About depth / 256: curvature and f32 rounding of uv both scale with the depth.
@@ -138,7 +139,7 @@ impl JacobianCase<3, 3> for BackProjectWrtUvDepth {
     // only shrinks the rounding noise.
     const STEP: f64 = 1.0 / 16.0;
     type Context = PinholeCamera;
-    fn sample(rng: &mut XorShift, _: usize) -> (PinholeCamera, SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, _: usize) -> (PinholeCamera, SVector<f64, 3>) {
         let cam = random_camera(rng);
         let x = SVector::from([
             rng.uniform(0.0, 639.0),
@@ -161,7 +162,7 @@ impl JacobianCase<3, 3> for BackProjectWrtUvDepth {
 /// A camera, a world-to-camera pose and a world point the pose sees.
 type WorldScene = (PinholeCamera, Isometry3<f64>, Point3<f32>);
 
-fn random_scene(rng: &mut XorShift, i: usize) -> WorldScene {
+fn random_scene(rng: &mut TestRng, i: usize) -> WorldScene {
     let cam = random_camera(rng);
     let t_cw = se3_exp(&random_twist(rng, i));
     let p_w = t_cw.inverse() * Point3::from(random_point_in_view(rng));
@@ -174,7 +175,7 @@ impl JacobianCase<6, 2> for ProjectWrtPose {
     const REL_TOL: f64 = 1e-3;
     const STEP: f64 = 1e-3;
     type Context = WorldScene;
-    fn sample(rng: &mut XorShift, i: usize) -> (WorldScene, SVector<f64, 6>) {
+    fn sample(rng: &mut TestRng, i: usize) -> (WorldScene, SVector<f64, 6>) {
         (random_scene(rng, i), Vector6::zeros())
     }
     fn value((cam, t_cw, p_w): &WorldScene, xi: &SVector<f64, 6>) -> SVector<f64, 2> {
@@ -193,7 +194,7 @@ impl JacobianCase<3, 2> for ProjectWrtWorldPoint {
     const REL_TOL: f64 = 1e-3;
     const STEP: f64 = 1.0 / 1024.0;
     type Context = (PinholeCamera, Pose);
-    fn sample(rng: &mut XorShift, i: usize) -> ((PinholeCamera, Pose), SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, i: usize) -> ((PinholeCamera, Pose), SVector<f64, 3>) {
         let (cam, t_cw, p_w) = random_scene(rng, i);
         ((cam, t_cw.cast()), p_w.coords.cast())
     }
@@ -213,7 +214,7 @@ impl JacobianCase<3, 2> for ProjectWrtWorldPoint {
 }
 
 /// Rotation vectors away from pi, where a step could wrap the log.
-fn rotation_below_pi(rng: &mut XorShift, i: usize) -> Vector3<f64> {
+fn rotation_below_pi(rng: &mut TestRng, i: usize) -> Vector3<f64> {
     let phi = random_rotation_vector(rng, i);
     if phi.norm() > 3.1 { phi * (3.1 / phi.norm()) } else { phi }
 }
@@ -224,7 +225,7 @@ impl JacobianCase<3, 3> for So3Exp {
     const REL_TOL: f64 = 1e-8;
     const STEP: f64 = 1e-6;
     type Context = Vector3<f64>;
-    fn sample(rng: &mut XorShift, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
         (random_rotation_vector(rng, i), Vector3::zeros())
     }
     fn value(phi: &Vector3<f64>, d: &SVector<f64, 3>) -> SVector<f64, 3> {
@@ -241,7 +242,7 @@ impl JacobianCase<3, 3> for So3Log {
     const REL_TOL: f64 = 1e-8;
     const STEP: f64 = 1e-6;
     type Context = Vector3<f64>;
-    fn sample(rng: &mut XorShift, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
         (rotation_below_pi(rng, i), Vector3::zeros())
     }
     fn value(phi: &Vector3<f64>, d: &SVector<f64, 3>) -> SVector<f64, 3> {
@@ -258,7 +259,7 @@ impl JacobianCase<6, 6> for Se3Exp {
     const REL_TOL: f64 = 1e-8;
     const STEP: f64 = 1e-6;
     type Context = Vector6<f64>;
-    fn sample(rng: &mut XorShift, i: usize) -> (Vector6<f64>, SVector<f64, 6>) {
+    fn sample(rng: &mut TestRng, i: usize) -> (Vector6<f64>, SVector<f64, 6>) {
         (random_twist(rng, i), Vector6::zeros())
     }
     fn value(xi: &Vector6<f64>, d: &SVector<f64, 6>) -> SVector<f64, 6> {
@@ -275,8 +276,8 @@ impl JacobianCase<6, 6> for Se3Log {
     const REL_TOL: f64 = 1e-8;
     const STEP: f64 = 1e-6;
     type Context = Vector6<f64>;
-    fn sample(rng: &mut XorShift, i: usize) -> (Vector6<f64>, SVector<f64, 6>) {
-        let rho = rng.vector3(-2.0, 2.0);
+    fn sample(rng: &mut TestRng, i: usize) -> (Vector6<f64>, SVector<f64, 6>) {
+        let rho = random_vector3(rng, -2.0, 2.0);
         let phi = rotation_below_pi(rng, i);
         (Vector6::new(rho.x, rho.y, rho.z, phi.x, phi.y, phi.z), Vector6::zeros())
     }
@@ -337,7 +338,7 @@ impl JacobianCase<3, 3> for WrongSign {
     const REL_TOL: f64 = 1e-3;
     const STEP: f64 = 1e-6;
     type Context = Vector3<f64>;
-    fn sample(rng: &mut XorShift, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
+    fn sample(rng: &mut TestRng, i: usize) -> (Vector3<f64>, SVector<f64, 3>) {
         So3Exp::sample(rng, i)
     }
     fn value(phi: &Vector3<f64>, d: &SVector<f64, 3>) -> SVector<f64, 3> {

@@ -194,6 +194,7 @@ pub fn downsample_depth_2x(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::TestRng;
 
     fn gray_2x(src: &[u8], w: usize, h: usize) -> [u8; 4] {
         let mut out = [0u8; 4];
@@ -319,17 +320,6 @@ mod tests {
         }
     }
 
-    /// A deterministic pseudo-random sequence (xorshift32) for test images.
-    fn noise(seed: u32) -> impl FnMut() -> u32 {
-        let mut x = seed.max(1);
-        move || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        }
-    }
-
     #[test]
     fn streaming_row_pairs_gives_exactly_the_whole_frame_output() {
         extern crate std;
@@ -338,7 +328,8 @@ mod tests {
         // the extreme raw values.
         for (w, h, seed) in [(640, 480, 1), (7, 5, 2), (2, 2, 3), (33, 8, 4), (320, 3, 5)] {
             let stride = w + 3;
-            let mut next = noise(seed);
+            let mut rng = TestRng::new(seed);
+            let mut next = || rng.next_u32();
             let gray: Vec<u8> = (0..stride * h).map(|_| next() as u8).collect();
             let depth: Vec<u16> = (0..stride * h)
                 .map(|_| match next() % 8 {

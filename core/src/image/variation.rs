@@ -144,6 +144,7 @@ pub fn variation_map(img: &GrayView<'_>, dst: &mut GrayViewMut<'_>) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::TestRng;
 
     /// Eq. 3 straight from the definition, for comparison.
     fn reference_total(img: &GrayView<'_>) -> u64 {
@@ -223,12 +224,8 @@ mod tests {
 
     #[test]
     fn matches_the_definition_on_pseudo_random_images() {
-        let mut seed = 0x1234_5678u32;
-        let mut buf = [0u8; 13 * 9];
-        for b in buf.iter_mut() {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            *b = (seed >> 24) as u8;
-        }
+        let mut rng = TestRng::new(0x1234_5678);
+        let buf: [u8; 13 * 9] = core::array::from_fn(|_| (rng.next_u32() >> 24) as u8);
         for (w, h, stride) in [(13, 9, 13), (7, 5, 11), (2, 9, 13), (13, 1, 13), (1, 1, 1)] {
             let img = GrayView::new(&buf, w, h, stride).unwrap();
             assert_eq!(total_variation(&img), reference_total(&img), "{w}x{h}/{stride}");

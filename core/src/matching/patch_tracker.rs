@@ -578,14 +578,11 @@ pub fn track_patch_with(
 /// Test images shared by the submodules' tests.
 #[cfg(test)]
 mod test_images {
-    /// A 40 x 40 image of pseudo-random pixels from `seed` (a linear congruential generator).
-    pub(crate) fn noise_image(seed: u32) -> [u8; 40 * 40] {
-        let mut state = seed;
-        let mut img = [0u8; 40 * 40];
-        for p in img.iter_mut() {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            *p = (state >> 24) as u8;
-        }
-        img
+    use crate::test_rng::TestRng;
+
+    /// A 40 x 40 image of pseudo-random pixels from `seed`.
+    pub(crate) fn noise_image(seed: u64) -> [u8; 40 * 40] {
+        let mut rng = TestRng::new(seed);
+        core::array::from_fn(|_| (rng.next_u32() >> 24) as u8)
     }
 }

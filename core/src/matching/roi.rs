@@ -3,6 +3,7 @@
 
 use heapless::Vec;
 
+use crate::grid_spread::{Grid, insert_best_first};
 use crate::image::GrayView;
 
 /// A region of interest: a square template of `2 half_size + 1` pixels centred at `centre`.
@@ -36,6 +37,11 @@ pub struct RoiParams {
     pub border_px: usize,
     /// ROIs whose mean `v_m` is below this are dropped as flat, gray levels; default 8.
     pub min_mean_variation: u32,
+}
+
+impl Roi {
+    /// A placeholder for the slots of a list not yet filled.
+    const UNSET: Self = Self { centre: (0.0, 0.0), half_size: 0, score: 0 };
 }
 
 impl Default for RoiParams {
@@ -93,43 +99,29 @@ fn best_in_cell(
 /// first (ties: earlier cell, row-major, first).
 ///
 /// Cost: about `(cell_px / candidate_step)^2` candidates per cell, each `(2h + 1)^2` byte adds:
-/// ~190 k adds at QVGA with the defaults. No allocation; the result is returned by value.
+/// ~190 k adds at QVGA with the defaults. No allocation: the best `N` are kept in an array of `N`
+/// ROIs on the stack, and the result is returned by value.
 pub fn select_rois<const N: usize>(variation: &GrayView<'_>, params: &RoiParams) -> Vec<Roi, N> {
-    let mut out: Vec<Roi, N> = Vec::new();
     if params.half_size > MAX_ROI_HALF_SIZE {
-        return out;
+        return Vec::new();
     }
     let cell = params.cell_px.max(2 * params.half_size + 1);
     let side = (2 * params.half_size + 1) as u32;
     let min_score = params.min_mean_variation.saturating_mul(side * side);
-    let (w, h) = variation.size();
-    for y0 in (0..h).step_by(cell) {
-        for x0 in (0..w).step_by(cell) {
-            let x_range = (x0, x0.saturating_add(cell).min(w));
-            let y_range = (y0, y0.saturating_add(cell).min(h));
-            let Some((cx, cy, score)) = best_in_cell(variation, params, x_range, y_range) else {
-                continue;
-            };
-            if score < min_score || score == 0 {
-                continue;
-            }
-            let roi = Roi { centre: (cx as f32, cy as f32), half_size: params.half_size, score };
-            insert_ranked(&mut out, roi);
+    let grid = Grid::with_cell_side(variation.size(), cell);
+    // The `N` best ROIs so far, best first; ties keep the earlier cell.
+    let mut best = [Roi::UNSET; N];
+    let mut len = 0;
+    for c in 0..grid.cells() {
+        let (x_range, y_range) = grid.cell_bounds(c);
+        let Some((cx, cy, score)) = best_in_cell(variation, params, x_range, y_range) else {
+            continue;
+        };
+        if score < min_score || score == 0 {
+            continue;
         }
+        let roi = Roi { centre: (cx as f32, cy as f32), half_size: params.half_size, score };
+        len = insert_best_first(&mut best, len, roi, |r| roi.score > r.score);
     }
-    out
-}
-
-/// Inserts `roi` into `out` kept in decreasing score; when full, the lowest is evicted (or `roi`
-/// dropped when it does not score above the lowest).
-fn insert_ranked<const N: usize>(out: &mut Vec<Roi, N>, roi: Roi) {
-    let pos = out.iter().position(|r| roi.score > r.score).unwrap_or(out.len());
-    if pos >= N {
-        return;
-    }
-    if out.is_full() {
-        out.pop();
-    }
-    // Cannot fail: there is room, and `pos <= len`.
-    let _ = out.insert(pos, roi);
+    Vec::from_slice(best.get(..len).unwrap_or_default()).unwrap_or_default()
 }

@@ -9,28 +9,10 @@ use std::vec::Vec;
 
 use super::*;
 use crate::image::{GrayView, GrayViewMut, variation_map};
+use crate::test_rng::TestRng;
 
 const W: usize = 320;
 const H: usize = 240;
-
-/// A tiny xorshift32 generator: the same stream on every platform.
-struct XorShift(u32);
-
-impl XorShift {
-    fn next_u32(&mut self) -> u32 {
-        let mut x = self.0;
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        self.0 = x;
-        x
-    }
-
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * ((self.next_u32() >> 8) as f32 / (1u32 << 24) as f32)
-    }
-}
 
 /// A smooth synthetic texture: a sum of sinusoids (wavelengths 12-40 px) plus Gaussian blobs
 /// (sigma 3-7 px), defined at every real position.
@@ -41,18 +23,23 @@ struct Texture {
 
 impl Texture {
     fn new(seed: u32) -> Self {
-        let mut rng = XorShift(seed);
+        let mut rng = TestRng::xorshift32(seed);
         let waves = (0..6)
             .map(|_| {
-                let angle = rng.uniform(0.0, core::f32::consts::PI);
-                let k = 2.0 * core::f32::consts::PI / rng.uniform(12.0, 40.0);
-                (k * libm::cosf(angle), k * libm::sinf(angle), rng.uniform(0.0, 6.3), 14.0)
+                let angle = rng.uniform_f32(0.0, core::f32::consts::PI);
+                let k = 2.0 * core::f32::consts::PI / rng.uniform_f32(12.0, 40.0);
+                (k * libm::cosf(angle), k * libm::sinf(angle), rng.uniform_f32(0.0, 6.3), 14.0)
             })
             .collect();
         let blobs = (0..60)
             .map(|_| {
-                let amp = rng.uniform(-60.0, 60.0);
-                (rng.uniform(0.0, W as f32), rng.uniform(0.0, H as f32), rng.uniform(3.0, 7.0), amp)
+                let amp = rng.uniform_f32(-60.0, 60.0);
+                (
+                    rng.uniform_f32(0.0, W as f32),
+                    rng.uniform_f32(0.0, H as f32),
+                    rng.uniform_f32(3.0, 7.0),
+                    amp,
+                )
             })
             .collect();
         Self { waves, blobs }

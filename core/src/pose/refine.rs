@@ -386,7 +386,7 @@ mod tests {
     /// magnitudes, accumulated over many terms as in [`Problem::accumulate`].
     #[test]
     fn hessian_updates_are_bit_identical_to_the_dense_products() {
-        let mut rng = crate::geometry::test_support::XorShift::new(7);
+        let mut rng = crate::test_rng::TestRng::new(7);
         let mut val = |scale: f64| (rng.uniform(-1.0, 1.0) * scale) as f32;
         let (mut dense, mut sparse) = (Matrix6::<f32>::zeros(), Matrix6::<f32>::zeros());
         for i in 0..500 {

@@ -7,26 +7,10 @@ use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use super::*;
 use crate::geometry::{PinholeCamera, Pose, se3_exp};
+use crate::test_rng::TestRng;
 
 /// True depth noise coefficient of the synthetic sensor (Kinect v1), per metre.
 const SENSOR_DEPTH_COEFF: f32 = 1.4e-3;
-
-struct Gen(TrackingRng);
-
-impl Gen {
-    fn unit(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 / (1u32 << 24) as f32
-    }
-    fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-    /// Standard normal (Box-Muller).
-    fn gauss(&mut self) -> f32 {
-        let u1 = self.unit().max(1e-7);
-        let u2 = self.unit();
-        libm::sqrtf(-2.0 * libm::logf(u1)) * libm::cosf(2.0 * core::f32::consts::PI * u2)
-    }
-}
 
 fn camera() -> PinholeCamera {
     PinholeCamera::new(525.0, 525.0, 319.5, 239.5, 640, 480).unwrap()
@@ -66,17 +50,19 @@ struct Scene {
 fn scene(n: usize, noise_px: f32, depth_fraction: f32, outlier_tenths: usize, seed: u64) -> Scene {
     let cam = camera();
     let t_wc = truth().inverse();
-    let mut g = Gen(TrackingRng::new(seed));
+    let mut g = TestRng::new(seed);
     let mut s = Scene { corrs: heapless::Vec::new(), outliers: InlierMask::new() };
     for i in 0..n {
-        let (u, v, z) = (g.uniform(5.0, 634.0), g.uniform(5.0, 474.0), g.uniform(1.0, 4.0));
+        let (u, v, z) =
+            (g.uniform_f32(5.0, 634.0), g.uniform_f32(5.0, 474.0), g.uniform_f32(1.0, 4.0));
         let p_w = t_wc * cam.back_project(u, v, z);
-        let mut uv = Point2::new(u + noise_px * g.gauss(), v + noise_px * g.gauss());
-        let depth_noise = if noise_px > 0.0 { SENSOR_DEPTH_COEFF * z * z * g.gauss() } else { 0.0 };
-        let mut depth_m = (g.unit() < depth_fraction).then_some(z + depth_noise);
+        let mut uv = Point2::new(u + noise_px * g.normal_f32(), v + noise_px * g.normal_f32());
+        let depth_noise =
+            if noise_px > 0.0 { SENSOR_DEPTH_COEFF * z * z * g.normal_f32() } else { 0.0 };
+        let mut depth_m = (g.unit_f32() < depth_fraction).then_some(z + depth_noise);
         if i % 10 < outlier_tenths {
-            uv = Point2::new(g.uniform(0.0, 639.0), g.uniform(0.0, 479.0));
-            depth_m = depth_m.map(|_| g.uniform(1.0, 4.0));
+            uv = Point2::new(g.uniform_f32(0.0, 639.0), g.uniform_f32(0.0, 479.0));
+            depth_m = depth_m.map(|_| g.uniform_f32(1.0, 4.0));
             s.outliers.insert(i);
         }
         s.corrs.push(Correspondence { p_w, uv, depth_m }).unwrap();
@@ -267,4 +253,16 @@ fn ransac_succeeds_over_many_seeds_and_scenes() {
         core::mem::size_of::<Correspondence>(),
         core::mem::size_of::<MotionModel>()
     );
+}
+
+/// The tests' generator is the RANSAC generator's algorithm: the same `next_u32` stream for a seed
+/// (the product's generator stays apart from test code).
+#[test]
+fn the_test_generator_draws_the_ransac_stream() {
+    for seed in [0, 1, 42, u64::MAX] {
+        let (mut test, mut product) = (TestRng::new(seed), TrackingRng::new(seed));
+        for _ in 0..100 {
+            assert_eq!(test.next_u32(), product.next_u32(), "seed {seed}");
+        }
+    }
 }

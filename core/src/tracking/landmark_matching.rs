@@ -6,10 +6,10 @@ use nalgebra::Point2;
 
 use super::GuideStage;
 use super::frontend::Frontend;
-use super::select::{Candidate, spread};
 use crate::config::capacity;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
+use crate::grid_spread::{Candidate, Grid, spread};
 use crate::map::Map;
 use crate::matching::{
     MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
@@ -179,7 +179,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                     // The guides replace the scratch the last final stage left.
                     last_start = None;
                     self.collect_candidates(cam, map, &prediction, matcher.margin());
-                    spread(&mut self.scratch.candidates, size, GUIDE_GRID, p.guide_landmarks);
+                    spread(&mut self.scratch.candidates, &Grid::with_cells(size, GUIDE_GRID));
+                    self.scratch.candidates.truncate(p.guide_landmarks);
                     self.match_candidates(frame, cam, map, &prediction, matcher);
                     self.work.guide_runs = self.work.guide_runs.saturating_add(1);
                     guides = self.scratch.correspondences.len();
@@ -230,7 +231,8 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         self.work.final_stages = self.work.final_stages.saturating_add(1);
         let fine = Matcher::Patch(&p.track);
         self.collect_candidates(cam, map, start, fine.margin());
-        spread(&mut self.scratch.candidates, frame.gray.size(), TRACK_GRID, p.max_tracked);
+        spread(&mut self.scratch.candidates, &Grid::with_cells(frame.gray.size(), TRACK_GRID));
+        self.scratch.candidates.truncate(p.max_tracked);
         self.match_candidates(frame, cam, map, start, fine);
         let matches = self.scratch.correspondences.len();
         let estimate = (matches >= p.min_matches)

@@ -6,8 +6,8 @@
 //! pipeline and what it keeps of recent frames), `landmark_matching.rs` (the guide and final
 //! stages, and their scratch), `keyframe.rs` (the keyframe rule, detection, keyframes and new
 //! landmarks), `map_reuse.rs` (re-acquiring map landmarks), `local_map.rs` (the tracked landmarks
-//! and their templates), `result.rs` (what a frame gives back), `params.rs` (every tunable),
-//! `select.rs` (spreading candidates over the image).
+//! and their templates), `result.rs` (what a frame gives back), `params.rs` (every tunable). The
+//! candidates are spread over the image by `crate::grid_spread`.
 
 pub mod frontend;
 mod keyframe;
@@ -16,7 +16,6 @@ pub mod local_map;
 mod map_reuse;
 mod params;
 mod result;
-mod select;
 
 pub use frontend::{Frontend, QvgaFrontend, VgaFrontend};
 pub use local_map::{

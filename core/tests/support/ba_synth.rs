@@ -9,6 +9,12 @@ use nalgebra::{Point2, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use ferroslam_core::config::capacity::{LOCAL_WINDOW_MAX, MAX_KEYFRAMES};
 
+/// The generator of core's unit tests, the same file: integration tests cannot see the library's
+/// `#[cfg(test)]` items.
+#[path = "../../src/test_rng.rs"]
+mod test_rng;
+pub use test_rng::TestRng;
+
 /// Points of the stand-alone adjusters the tests and the benchmark use (larger than the back
 /// end's, which `config::BOARD_MAP` sizes).
 pub const BA_MAX_POINTS: usize = 1536;
@@ -22,37 +28,6 @@ pub type LocalBundleAdjuster =
 /// a camera (99,504 bytes).
 pub type SegmentedBundleAdjuster =
     BundleAdjuster<{ MAX_KEYFRAMES / 4 }, MAX_KEYFRAMES, BA_MAX_POINTS, BA_MAX_OBSERVATIONS>;
-
-/// xorshift64*, with Gaussian samples by Box-Muller.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Self(seed.max(1))
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    pub fn gauss(&mut self, sigma: f64) -> f64 {
-        let u1 = self.unit().max(1e-300);
-        let u2 = self.unit();
-        sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
 
 /// What to generate.
 #[derive(Debug, Clone, Copy)]
@@ -151,8 +126,8 @@ fn true_t_wc(k: usize) -> Pose {
 }
 
 /// `exp(xi) t` with `xi` Gaussian (sigma_t on rho, sigma_r on phi).
-pub fn perturb(rng: &mut Rng, t: &Pose, sigma_t: f64, sigma_r: f64) -> Pose {
-    let mut g = |s: f64| rng.gauss(s) as f32;
+pub fn perturb(rng: &mut TestRng, t: &Pose, sigma_t: f64, sigma_r: f64) -> Pose {
+    let mut g = |s: f64| (s * rng.normal()) as f32;
     let xi = Vector6::new(g(sigma_t), g(sigma_t), g(sigma_t), g(sigma_r), g(sigma_r), g(sigma_r));
     se3_exp(&xi) * t
 }
@@ -160,7 +135,7 @@ pub fn perturb(rng: &mut Rng, t: &Pose, sigma_t: f64, sigma_r: f64) -> Pose {
 impl Synth {
     pub fn generate(cfg: &SynthConfig) -> Self {
         let camera = qvga_camera();
-        let mut rng = Rng::new(cfg.seed);
+        let mut rng = TestRng::new(cfg.seed);
         let true_t_cw: Vec<Pose> = (0..cfg.keyframes).map(|k| true_t_wc(k).inverse()).collect();
         let fixed_keyframe: Vec<bool> =
             (0..cfg.keyframes).map(|k| k < cfg.fixed_keyframes).collect();
@@ -192,7 +167,7 @@ impl Synth {
     }
 
     /// Seeds point `i` in keyframe `i mod K` and observes it from the `span` keyframes around.
-    fn add_point(&mut self, cfg: &SynthConfig, rng: &mut Rng, i: usize) {
+    fn add_point(&mut self, cfg: &SynthConfig, rng: &mut TestRng, i: usize) {
         let k_count = cfg.keyframes;
         let anchor = i % k_count;
         let (u, v) = (rng.uniform(10.0, 310.0) as f32, rng.uniform(10.0, 230.0) as f32);
@@ -209,14 +184,14 @@ impl Synth {
             }
             let outlier = rng.unit() < cfg.outlier_fraction;
             let mut uv_m = Point2::new(
-                uv.x + rng.gauss(cfg.pixel_noise_px) as f32,
-                uv.y + rng.gauss(cfg.pixel_noise_px) as f32,
+                uv.x + (cfg.pixel_noise_px * rng.normal()) as f32,
+                uv.y + (cfg.pixel_noise_px * rng.normal()) as f32,
             );
             let has_depth = rng.unit() < cfg.depth_fraction;
             let z = f64::from(p_k.z);
-            let mut depth_m = (z + rng.gauss(cfg.depth_noise_coeff * z * z)) as f32;
+            let mut depth_m = (z + cfg.depth_noise_coeff * z * z * rng.normal()) as f32;
             if outlier {
-                let sign = |r: &mut Rng| if r.unit() < 0.5 { -1.0 } else { 1.0 };
+                let sign = |r: &mut TestRng| if r.unit() < 0.5 { -1.0 } else { 1.0 };
                 // Wrong matches elsewhere in the image.
                 uv_m.x = (uv_m.x + sign(rng) * rng.uniform(10.0, 30.0) as f32).clamp(0.0, 319.0);
                 uv_m.y = (uv_m.y + sign(rng) * rng.uniform(10.0, 30.0) as f32).clamp(0.0, 239.0);
@@ -234,7 +209,11 @@ impl Synth {
             p_w
         } else {
             let s = cfg.start_sigma_p_m;
-            p_w + Vector3::new(rng.gauss(s) as f32, rng.gauss(s) as f32, rng.gauss(s) as f32)
+            p_w + Vector3::new(
+                (s * rng.normal()) as f32,
+                (s * rng.normal()) as f32,
+                (s * rng.normal()) as f32,
+            )
         };
         self.true_p_w.push(p_w);
         self.start_p_w.push(start);
@@ -333,7 +312,7 @@ pub fn segmented<const R: usize, const C: usize, const P: usize, const O: usize>
     ba: &mut BundleAdjuster<R, C, P, O>,
 ) -> Result<Segmented, BaError> {
     let synth = Synth::generate(cfg);
-    let mut rng = Rng::new(99);
+    let mut rng = TestRng::new(99);
     ba.clear();
     let (mut truth, mut rigs, mut cams) = (Vec::new(), Vec::new(), Vec::new());
     for seg in 0..cfg.keyframes.div_ceil(seg_len) {
