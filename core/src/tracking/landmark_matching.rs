@@ -1,12 +1,10 @@
 //! The front end's matching stages (guides, bank recovery, final stage) and the local map's
 //! per-frame bookkeeping; see the module documentation of `frontend.rs`.
 
-use heapless::Vec;
 use nalgebra::Point2;
 
 use super::GuideStage;
 use super::frontend::Frontend;
-use crate::config::capacity;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::grid_spread::{Candidate, Grid, spread};
@@ -15,9 +13,7 @@ use crate::matching::{
     MatchError, MatchParams, TrackParams, TrackScratch, match_region, track_patch_with,
 };
 use crate::pose::small_image_rotation::estimate_rotation;
-use crate::pose::{
-    Correspondence, MAX_CORRESPONDENCES, PoseEstimate, PoseParams, TrackingRng, track_pose,
-};
+use crate::pose::{Correspondence, PoseEstimate, PoseParams, TrackingRng, track_pose};
 
 /// Grid the guides are spread over (columns, rows).
 const GUIDE_GRID: (usize, usize) = (4, 3);
@@ -87,23 +83,6 @@ pub(super) struct MatchSummary {
     pub stage: GuideStage,
     /// The pose, when tracking succeeded (enough matches and inliers).
     pub estimate: Option<PoseEstimate>,
-}
-
-/// The matching stages' scratch: the landmarks tried (`candidates`), and the correspondences
-/// found with the local-map index of each (`sources`). After [`Frontend::match_landmarks`] it
-/// holds the winning final stage, which the keyframe and the local map's bookkeeping read.
-#[derive(Debug, Clone)]
-pub(super) struct MatchScratch {
-    pub(super) candidates: Vec<Candidate, { capacity::MAX_TRACKED_LANDMARKS }>,
-    pub(super) correspondences: Vec<Correspondence, MAX_CORRESPONDENCES>,
-    /// Local-map index of each correspondence.
-    pub(super) sources: Vec<u16, MAX_CORRESPONDENCES>,
-}
-
-impl MatchScratch {
-    pub(super) const fn new() -> Self {
-        Self { candidates: Vec::new(), correspondences: Vec::new(), sources: Vec::new() }
-    }
 }
 
 /// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.

@@ -8,9 +8,11 @@ use std::vec::Vec;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
+use super::keyframe_rule::{KeyframeDecision, decide_keyframe};
 use super::*;
+use crate::frame::RgbdFrame;
+use crate::geometry::{PinholeCamera, Pose};
 use crate::image::{DepthView, GrayView, ImageView};
-use crate::tracking::keyframe::decide_keyframe;
 
 const W: usize = 320;
 const H: usize = 240;

@@ -1,0 +1,120 @@
+//! The per-frame pipeline of the module documentation after the input checks and the prediction
+//! of [`Frontend::process`]: tracking the local map, or starting (again) from a keyframe.
+
+use super::frontend::Frontend;
+use super::keyframe_rule::KeyframeDecision;
+use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
+use crate::frame::RgbdFrame;
+use crate::geometry::{PinholeCamera, Pose};
+use crate::map::Map;
+
+impl<const W: usize, const H: usize> Frontend<W, H> {
+    /// Starts (or restarts) tracking from a keyframe made of `frame` at `t_cw`.
+    pub(super) fn initialize<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        t_cw: &Pose,
+    ) -> FrameResult {
+        let first = self.stats.keyframes == 0;
+        self.local.clear();
+        self.scratch.correspondences.clear();
+        self.scratch.sources.clear();
+        let made = self.make_keyframe(frame, cam, map, t_cw, None, self.params.hessian.octaves);
+        let state = match (made, first) {
+            (Some(_), _) => FrontendState::Tracking,
+            (None, true) => FrontendState::Initializing,
+            (None, false) => FrontendState::Lost,
+        };
+        self.recent.motion.reset();
+        if made.is_some() {
+            // Cannot fail: timestamps were checked to increase.
+            let _ = self.recent.motion.update(frame.timestamp_s, t_cw);
+        }
+        FrameResult {
+            t_wc: t_cw.inverse(),
+            state,
+            tracked: made.is_some() && first,
+            reinitialized: made.is_some() && !first,
+            keyframe: made,
+            reference_keyframe: self.keyframing.reference_keyframe(),
+            inliers: 0,
+            matches: 0,
+            guide_matches: 0,
+            guide_stage: GuideStage::None,
+            tracked_landmarks: 0,
+            keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
+        }
+    }
+
+    /// Tracks the local map; on failure right after a loss, re-initializes.
+    pub(super) fn track_or_recover<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        predicted_t_cw: &Pose,
+    ) -> FrameResult {
+        let was_lost = self.recent.state == FrontendState::Lost;
+        let summary = self.match_landmarks(frame, cam, map, predicted_t_cw);
+        // The inlier mask indexes the scratch: it must hold the winning final stage.
+        debug_assert!(
+            summary.estimate.is_none() || summary.matches == self.scratch.correspondences.len(),
+            "the scratch does not hold the winning final stage"
+        );
+        let lost = FrameResult {
+            t_wc: predicted_t_cw.inverse(),
+            state: FrontendState::Lost,
+            tracked: false,
+            reinitialized: false,
+            keyframe: None,
+            reference_keyframe: self.keyframing.reference_keyframe(),
+            inliers: 0,
+            matches: summary.matches,
+            guide_matches: summary.guides,
+            guide_stage: summary.stage,
+            tracked_landmarks: 0,
+            keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
+        };
+        if summary.stage == GuideStage::AffineBank {
+            self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);
+        }
+        let Some(est) = summary.estimate else {
+            if was_lost {
+                let r = self.initialize(frame, cam, map, predicted_t_cw);
+                return FrameResult {
+                    matches: summary.matches,
+                    guide_matches: summary.guides,
+                    ..r
+                };
+            }
+            return lost;
+        };
+        // Cannot fail: timestamps were checked to increase.
+        let _ = self.recent.motion.update(frame.timestamp_s, &est.t_cw);
+        self.update_local_map(cam, map, &est);
+        let keyframe = match self.keyframing.decide(&est, self.work.is_costly(), &self.params) {
+            KeyframeDecision::None => None,
+            KeyframeDecision::PutOff => {
+                self.stats.keyframes_put_off = self.stats.keyframes_put_off.saturating_add(1);
+                None
+            }
+            KeyframeDecision::Make { octaves } => {
+                self.make_keyframe(frame, cam, map, &est.t_cw, Some(&est.inliers), octaves)
+            }
+        };
+        self.cull_local_map();
+        FrameResult {
+            t_wc: est.t_cw.inverse(),
+            state: FrontendState::Tracking,
+            tracked: true,
+            keyframe,
+            reference_keyframe: self.keyframing.reference_keyframe(),
+            inliers: est.num_inliers,
+            ..lost
+        }
+    }
+}
