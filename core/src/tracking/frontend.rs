@@ -8,7 +8,8 @@ use super::FrontendParams;
 use super::keyframe_rule::KeyframeRule;
 use super::local_map::BoardLocalMap;
 use super::result::{
-    FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork, size_mismatch,
+    FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
+    size_mismatch,
 };
 use crate::config::capacity;
 use crate::features::{FeatureVec, HessianDetector};
@@ -123,6 +124,7 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
                 tracked_frames: 0,
                 lost_frames: 0,
                 reinitializations: 0,
+                initializing_frames: 0,
                 keyframes: 0,
                 keyframes_put_off: 0,
                 bank_recoveries: 0,
@@ -187,15 +189,14 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         } else {
             self.track_or_recover(frame, cam, map, &predicted_t_cw)
         };
-        if result.tracked {
-            self.stats.tracked_frames = self.stats.tracked_frames.saturating_add(1);
-        }
-        if result.state == FrontendState::Lost {
-            self.stats.lost_frames = self.stats.lost_frames.saturating_add(1);
-        }
-        if result.reinitialized {
-            self.stats.reinitializations = self.stats.reinitializations.saturating_add(1);
-        }
+        let s = &mut self.stats;
+        let count = match result.outcome() {
+            FrameOutcome::Tracked => &mut s.tracked_frames,
+            FrameOutcome::Reinitialized => &mut s.reinitializations,
+            FrameOutcome::Lost => &mut s.lost_frames,
+            FrameOutcome::Initializing => &mut s.initializing_frames,
+        };
+        *count = count.saturating_add(1);
         self.recent.remember(frame.timestamp_s, &result);
         let keyframe_landmarks =
             if result.keyframe.is_some() { self.keyframing.last_counts } else { (0, 0, 0) };

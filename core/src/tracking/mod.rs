@@ -89,7 +89,8 @@ pub use local_map::{
 };
 pub use params::FrontendParams;
 pub use result::{
-    FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork, GuideStage,
+    FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
+    GuideStage,
 };
 
 #[cfg(test)]

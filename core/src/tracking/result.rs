@@ -19,6 +19,24 @@ pub enum FrontendState {
     Lost,
 }
 
+/// What became of one frame: every frame is exactly one of these (see
+/// [`FrameResult::outcome`]; [`FrontendStats`] counts each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FrameOutcome {
+    /// Its pose was estimated from its images (the very first keyframe counts: it defines the
+    /// world frame).
+    Tracked,
+    /// Tracking restarted from a keyframe made at its predicted pose after a loss: a pose, but
+    /// not one the images confirmed.
+    Reinitialized,
+    /// Not tracked: its pose is the motion model's prediction.
+    Lost,
+    /// No keyframe yet (no world frame): the front end waits for a frame with enough
+    /// depth-carrying features.
+    Initializing,
+}
+
 /// What [`Frontend::process`](super::Frontend::process) made of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameResult {
@@ -95,6 +113,18 @@ pub enum GuideStage {
     /// The final stage started from the prediction itself (tried first, or after guides that
     /// gave no pose), or the frame was not tracked against the local map.
     None,
+}
+
+impl FrameResult {
+    /// What became of the frame.
+    pub fn outcome(&self) -> FrameOutcome {
+        match (self.tracked, self.reinitialized, self.state) {
+            (true, _, _) => FrameOutcome::Tracked,
+            (false, true, _) => FrameOutcome::Reinitialized,
+            (false, false, FrontendState::Initializing) => FrameOutcome::Initializing,
+            (false, false, _) => FrameOutcome::Lost,
+        }
+    }
 }
 
 impl GuideStage {
@@ -174,14 +204,18 @@ impl core::error::Error for FrontendError {}
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrontendStats {
-    /// Frames processed.
+    /// Frames processed: `tracked_frames + reinitializations + lost_frames + initializing_frames`
+    /// (each frame has one [`FrameOutcome`]).
     pub frames: u32,
-    /// Frames whose pose was estimated from the images.
+    /// Frames whose pose was estimated from the images ([`FrameOutcome::Tracked`]).
     pub tracked_frames: u32,
-    /// Frames in state [`FrontendState::Lost`].
+    /// Frames not tracked, their pose a prediction ([`FrameOutcome::Lost`]).
     pub lost_frames: u32,
-    /// Times tracking restarted from a new keyframe after a loss.
+    /// Frames where tracking restarted from a new keyframe after a loss
+    /// ([`FrameOutcome::Reinitialized`]).
     pub reinitializations: u32,
+    /// Frames before the first keyframe ([`FrameOutcome::Initializing`]).
+    pub initializing_frames: u32,
     /// Keyframes made.
     pub keyframes: u32,
     /// Frames on which a due keyframe was put off because the frame was costly (see

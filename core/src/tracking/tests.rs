@@ -179,6 +179,7 @@ fn black_frames_and_missing_depth_never_panic() {
     let (black, no_depth) = (vec_of(0u8), vec_of(0u16));
     let r = fe.process(&frame(0.0, &black, &no_depth), &cam, &mut map).unwrap();
     assert_eq!((r.state, r.tracked), (FrontendState::Initializing, false));
+    assert_eq!(r.outcome(), FrameOutcome::Initializing);
     let (g, d) = render(&pose_at(0));
     let r = fe.process(&frame(0.1, &g, &no_depth), &cam, &mut map).unwrap();
     assert_eq!(r.state, FrontendState::Initializing, "no depth: no keyframe");
@@ -188,6 +189,7 @@ fn black_frames_and_missing_depth_never_panic() {
     // A black frame while tracking: lost, pose held (the prediction), never a jump.
     let r = fe.process(&frame(0.3, &black, &d), &cam, &mut map).unwrap();
     assert_eq!((r.state, r.tracked), (FrontendState::Lost, false));
+    assert_eq!(r.outcome(), FrameOutcome::Lost);
     assert!(r.t_wc.translation.vector.norm() < 1e-6);
     // Saturated white: lost again; the second loss in a row restarts from a keyframe, which a
     // flat image cannot give, so it stays lost.
@@ -202,6 +204,15 @@ fn black_frames_and_missing_depth_never_panic() {
     assert!(r.state == FrontendState::Tracking, "{r:?}");
     assert!(r.t_wc.translation.vector.norm() < 0.005, "{r:?}");
     assert!(fe.stats().lost_frames >= 1);
+    // Every frame has one outcome: 2 before the first keyframe, 1 tracked (the first keyframe),
+    // 3 lost (black, white, no depth), 1 restarted from a keyframe (the last); they add up.
+    let st = fe.stats();
+    let tally = (st.initializing_frames, st.tracked_frames, st.lost_frames, st.reinitializations);
+    assert_eq!(tally, (2, 1, 3, 1), "{st:?}");
+    assert_eq!(
+        st.tracked_frames + st.reinitializations + st.lost_frames + st.initializing_frames,
+        7
+    );
 }
 
 #[test]
