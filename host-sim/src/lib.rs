@@ -14,13 +14,18 @@
 //! - [`run`]: runs of the data path, odometry and SLAM over any frame source: the library API
 //!   behind `replay` and `demo`, which xtask and the tests call;
 //! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
+//! - [`replay`] and [`demo`]: a recorded folder or the synthetic sequence opened, run and written
+//!   out, returning the typed report: what `ferroslam-sim replay` and `demo` do, which xtask
+//!   calls in process;
 //! - [`commands`]: the CLI's subcommands, thin: arguments in, a run, its outputs.
 
 pub mod commands;
 pub mod dataset;
+pub mod demo;
 pub mod eval;
 pub mod frame;
 pub mod plot;
+pub mod replay;
 pub mod report;
 pub mod run;
 pub mod serial;

@@ -177,6 +177,20 @@ pub struct OdometryOutputs {
     pub evaluation: Option<EvalReport>,
 }
 
+/// What a replay or a demo wrote, and how long its frames took.
+#[derive(Debug, Clone)]
+pub struct RunOutputs {
+    /// The report written to `report.json`.
+    pub report: Report,
+    /// The evaluation against ground truth of the trajectory written, when there is one: in
+    /// odometry and SLAM modes `CameraTrajectory.txt`'s; in the demo's data-path mode the
+    /// simulated dead reckoning's (`baseline_trajectory.txt`); none in a replay's data-path mode.
+    pub evaluation: Option<EvalReport>,
+    /// Host wall-clock seconds the frames took, from the first frame asked for to the last one
+    /// processed (informational, like [`HostCost`]).
+    pub wall_s: f64,
+}
+
 /// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
 /// `trajectory.svg` and `ate.svg` into `dir`.
 ///

@@ -1,12 +1,13 @@
 //! The CI pipeline: each step runs a command and stops the run at the first failure. It sits on
 //! top of xtask: it uses the other modules, and none of them imports it (the paths they share
-//! are in `paths`, the host replays in `sim`).
+//! are in `paths`, the host replays with their bars in `sim`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use ferroslam_sim::dataset::calibrate_depth::{self, FrameSelection};
+use ferroslam_sim::run::TrackMode;
 
 use crate::cargo::{cargo, cargo_with_env};
 use crate::paths::{SEVEN_SCENES, SEVEN_SCENES_CALIBRATION, THUMB, ci_out, root};
@@ -164,22 +165,23 @@ const SEVEN_SCENES_SLAM_BAR_M: f64 = 0.050;
 
 /// Replays 7-Scenes at QVGA in `mode` into `target/ci/replay-7scenes-<mode>`, checks that all
 /// 1000 frames were tracked and the ATE RMSE is within `bar_m`, and returns the ATE.
-fn replay_seven_scenes(mode: &str, bar_m: f64) -> Result<f64> {
-    let out = ci_out(&format!("replay-7scenes-{mode}"));
+fn replay_seven_scenes(mode: TrackMode, bar_m: f64) -> Result<f64> {
+    let name = mode.name();
+    let out = ci_out(&format!("replay-7scenes-{name}"));
     let dataset = root().join(SEVEN_SCENES);
     let calibration = root().join(SEVEN_SCENES_CALIBRATION);
     let (frames, ate) =
         replay_with_bar("7-Scenes", &dataset, Some(&calibration), mode, Some(bar_m), &out)?;
     if frames != 1000 {
-        bail!("7-Scenes {mode}: {frames} frames processed; all 1000 must be");
+        bail!("7-Scenes {name}: {frames} frames processed; all 1000 must be");
     }
     Ok(ate)
 }
 
 /// The odometry and SLAM replays of 7-Scenes with their bars, and SLAM better than odometry.
 fn replay_seven_scenes_both() -> Result<()> {
-    let odometry = replay_seven_scenes("odometry", SEVEN_SCENES_ODOMETRY_BAR_M)?;
-    let slam = replay_seven_scenes("slam", SEVEN_SCENES_SLAM_BAR_M)?;
+    let odometry = replay_seven_scenes(TrackMode::Odometry, SEVEN_SCENES_ODOMETRY_BAR_M)?;
+    let slam = replay_seven_scenes(TrackMode::SLAM, SEVEN_SCENES_SLAM_BAR_M)?;
     if slam >= odometry {
         bail!("7-Scenes: SLAM ({slam:.4} m) is not better than odometry ({odometry:.4} m)");
     }

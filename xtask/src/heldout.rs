@@ -27,6 +27,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use ferroslam_sim::run::TrackMode;
 
 use crate::paths::{SEVEN_SCENES, calibration_for, ci_out, root};
 use crate::sim::replay_with_bar;
@@ -73,24 +74,19 @@ fn check_all(datasets: &[PathBuf]) -> Result<()> {
 
 /// Replays `dir` in both modes and checks issue 4's bar and SLAM better than odometry.
 fn check(dir: &Path) -> Result<()> {
-    // The replays run in the workspace root: a path relative to where xtask was called would
-    // name another folder there.
+    // Canonical, so that a relative path (`.` among them) still gives the folder's name, and a
+    // missing folder is an error that names it.
     let dir = std::fs::canonicalize(dir)
         .with_context(|| format!("held-out dataset {} is not a folder here", dir.display()))?;
     let name = dir.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let calibration = calibration_for(&dir);
-    let out = |mode: &str| ci_out("heldout").join(format!("{name}-{mode}"));
     let label = format!("held-out {name}");
-    let (_, odometry) =
-        replay_with_bar(&label, &dir, calibration.as_deref(), "odometry", None, &out("odometry"))?;
-    let (_, slam) = replay_with_bar(
-        &label,
-        &dir,
-        calibration.as_deref(),
-        "slam",
-        Some(HELDOUT_SLAM_BAR_M),
-        &out("slam"),
-    )?;
+    let replay = |mode: TrackMode, bar_m| {
+        let out = ci_out("heldout").join(format!("{name}-{}", mode.name()));
+        replay_with_bar(&label, &dir, calibration.as_deref(), mode, bar_m, &out)
+    };
+    let (_, odometry) = replay(TrackMode::Odometry, None)?;
+    let (_, slam) = replay(TrackMode::SLAM, Some(HELDOUT_SLAM_BAR_M))?;
     if slam >= odometry {
         bail!("{label}: SLAM ({slam:.4} m) is not better than odometry ({odometry:.4} m)");
     }

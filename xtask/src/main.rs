@@ -39,7 +39,7 @@
 //! `profile`, `heldout`, `spread`, `bench`, and `replay`, the firmware replay that `budgets`,
 //! `profile` and `ci` run too), over the pieces they share: `budget_tables` and `budget_doc`
 //! (`memory-budget.md`), `budget_figures` (what `budgets` measures and judges), `sim`
-//! (`ferroslam-sim replay` and its report), `cost` (a firmware run's per-frame costs), `firmware`
+//! (host-sim's replay in process, held to an accuracy bar), `cost` (a firmware run's per-frame costs), `firmware`
 //! (building it, running QEMU), `cargo` (running cargo), `stats`, and `paths` (the workspace
 //! root, the 7-Scenes recording and its calibration, the output folders) at the bottom.
 

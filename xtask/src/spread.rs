@@ -36,22 +36,29 @@
 //! - `-- REPLAY ARGS`: given to every replay, to measure an option's effect (for example
 //!   `-- --depth-level 0` or `-- --backend-quota 2500`).
 //!
-//! Each run is `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
-//! --skip-frames K [REPLAY ARGS]` (QVGA, the default back-end quota and schedule unless the
-//! replay arguments say otherwise), two at a time; the ATE is read from its `report.json`.
+//! Each run is what `ferroslam-sim replay DATASET [--calibration FILE] --mode MODE --seed S
+//! --skip-frames K [REPLAY ARGS]` does (QVGA, the default back-end quota and schedule unless the
+//! replay arguments say otherwise; `demo` for `--demo`), run in process: the command line parsed
+//! by the CLI's own parser, then host-sim's library (`ferroslam_sim::replay`,
+//! `ferroslam_sim::demo`), as many runs at once as the machine runs threads, each writing into
+//! `target/xtask/spread/run-N`; the ATE is read from the typed report it returns.
 //! Not part of `cargo xtask ci` (it takes a few minutes and asserts nothing): a tool for the
 //! engineer deciding whether a change helps.
 
+use std::ffi::OsString;
+use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Mutex;
 
 use anyhow::{Context, Result, bail};
+use ferroslam_sim::commands::demo::DemoArgs;
+use ferroslam_sim::commands::replay::ReplayArgs;
+use ferroslam_sim::demo::{DemoOptions, demo};
 use ferroslam_sim::eval::ErrorStats;
+use ferroslam_sim::replay::{ReplayOptions, replay};
 use serde_json::json;
 
-use crate::paths::{SEVEN_SCENES, root};
-use crate::sim::read_report;
+use crate::paths::{SEVEN_SCENES, root, xtask_out};
 
 /// Options of `spread`.
 #[derive(Debug, Clone)]
@@ -80,19 +87,9 @@ struct Run {
 /// Runs `spread` with the command-line `args` (after the subcommand).
 ///
 /// # Errors
-/// Bad arguments, a failed build or replay, or a report without an ATE.
+/// Bad arguments, a failed replay, or a report without an ATE.
 pub fn run(args: &[String]) -> Result<()> {
     let opts = parse_args(args)?;
-    let root = root();
-    let status = Command::new(env!("CARGO"))
-        .args(["build", "--release", "-p", "ferroslam-sim"])
-        .current_dir(&root)
-        .status()
-        .context("could not start cargo")?;
-    if !status.success() {
-        bail!("building ferroslam-sim failed with {status}");
-    }
-    let sim = root.join("target").join("release").join("ferroslam-sim");
     let seeds: Vec<Option<u64>> = std::iter::once(None).chain((1..=opts.seeds).map(Some)).collect();
     let mut grid = Vec::new();
     for mode in ["odometry", "slam"] {
@@ -102,8 +99,7 @@ pub fn run(args: &[String]) -> Result<()> {
             }
         }
     }
-    let out_dir = root.join("target").join("xtask").join("spread");
-    let results = replay_all(&sim, &opts, &out_dir, &grid)?;
+    let results = replay_all(&opts, &xtask_out("spread"), &grid)?;
     print_and_write(&opts, &grid, &results)
 }
 
@@ -118,12 +114,14 @@ struct Ate {
 /// Which figure of a run a summary row reads (`None`: the run has none).
 type Figure = fn(&Ate) -> Option<f64>;
 
-/// Replays every run of `grid`, two at a time, and returns their ATEs in grid order.
-fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Result<Vec<Ate>> {
+/// Replays every run of `grid` in process, as many at once as the machine runs threads, and
+/// returns their ATEs in grid order (whatever order they finish in).
+fn replay_all(opts: &Options, out_dir: &Path, grid: &[Run]) -> Result<Vec<Ate>> {
+    let workers = std::thread::available_parallelism().map_or(1, NonZeroUsize::get);
     let next = Mutex::new(0usize);
     let results: Mutex<Vec<Option<Result<Ate>>>> = Mutex::new(grid.iter().map(|_| None).collect());
     std::thread::scope(|s| {
-        for _ in 0..2 {
+        for _ in 0..workers.min(grid.len()) {
             s.spawn(|| {
                 loop {
                     let i = {
@@ -133,7 +131,7 @@ fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Resul
                         i
                     };
                     let Some(run) = grid.get(i) else { break };
-                    let r = replay_one(sim, opts, &out_dir.join(format!("run-{i}")), run);
+                    let r = replay_one(opts, &out_dir.join(format!("run-{i}")), run);
                     if let Ok(a) = &r {
                         let seed = run.seed.map_or("default".to_owned(), |s| s.to_string());
                         eprintln!(
@@ -150,36 +148,43 @@ fn replay_all(sim: &Path, opts: &Options, out_dir: &Path, grid: &[Run]) -> Resul
     results.into_iter().map(|r| r.context("a run was not done")?).collect()
 }
 
-/// One replay; its ATEs.
-fn replay_one(sim: &Path, opts: &Options, out: &Path, run: &Run) -> Result<Ate> {
-    let mut cmd = Command::new(sim);
-    if opts.demo {
-        cmd.arg("demo");
-    } else {
-        cmd.arg("replay").arg(&opts.dataset);
+/// The command line of one run, after the subcommand: `DATASET [--calibration FILE]` (a replay;
+/// the demo takes neither), `--out OUT --mode MODE --skip-frames K [--seed S] [REPLAY ARGS]`.
+fn run_args(opts: &Options, out: &Path, run: &Run) -> Vec<OsString> {
+    let mut args: Vec<OsString> = Vec::new();
+    if !opts.demo {
+        args.push(opts.dataset.clone().into());
     }
-    cmd.arg("--out").arg(out);
+    args.extend(["--out".into(), out.into()]);
     if let Some(c) = &opts.calibration {
-        cmd.arg("--calibration").arg(c);
+        args.extend(["--calibration".into(), c.into()]);
     }
-    cmd.args(["--mode", run.mode, "--skip-frames", &run.skip.to_string()]);
+    let skip = run.skip.to_string();
+    args.extend(["--mode", run.mode, "--skip-frames", &skip].map(OsString::from));
     if let Some(seed) = run.seed {
-        cmd.args(["--seed", &seed.to_string()]);
+        args.extend(["--seed".into(), seed.to_string().into()]);
     }
-    cmd.args(&opts.replay_args);
-    let output = cmd.output().with_context(|| format!("could not start {}", sim.display()))?;
-    if !output.status.success() {
-        bail!(
-            "replay {run:?} failed with {}: {}",
-            output.status,
-            String::from_utf8_lossy(&output.stderr).trim()
-        );
-    }
-    let report = read_report(out)?;
-    let final_m = report["ate_rmse_m"]
-        .as_f64()
-        .with_context(|| format!("{} has no ate_rmse_m", out.join("report.json").display()))?;
-    Ok(Ate { final_m, online_m: report["ate_online_rmse_m"].as_f64() })
+    args.extend(opts.replay_args.iter().map(OsString::from));
+    args
+}
+
+/// One run, in process: its command line parsed by the CLI's own parser, then host-sim's
+/// `replay` (or `demo`) without a progress bar; its ATEs from the typed report.
+fn replay_one(opts: &Options, out: &Path, run: &Run) -> Result<Ate> {
+    let args = run_args(opts, out, run);
+    let outputs = if opts.demo {
+        let args = DemoArgs::from_args(args)?;
+        demo(&args.out, &DemoOptions { progress_bar: false, ..args.options() })
+    } else {
+        let args = ReplayArgs::from_args(args)?;
+        replay(&args.dataset, &args.out, ReplayOptions { progress_bar: false, ..args.options() })
+    };
+    let report = outputs.with_context(|| format!("replay {run:?} failed"))?.report;
+    let final_m = report.ate_rmse_m.with_context(|| {
+        let why = report.evaluation_error.as_deref().unwrap_or("no ground truth");
+        format!("replay {run:?} has no ATE RMSE ({why})")
+    })?;
+    Ok(Ate { final_m, online_m: report.ate_online_rmse_m })
 }
 
 /// Prints the summary of each mode and the paired SLAM-vs-odometry comparison; writes the JSON.
@@ -323,5 +328,37 @@ mod tests {
         for bad in [&["--demo", "--seeds", "1"][..], &["--demo", "--dataset", "d"]] {
             assert!(a(bad).unwrap_err().to_string().contains("--demo takes no"));
         }
+    }
+
+    #[test]
+    fn each_run_goes_through_the_command_lines_own_parser() {
+        use ferroslam_sim::dataset::CalibrationSource;
+        use ferroslam_sim::run::TrackMode;
+
+        let args: Vec<String> =
+            ["--dataset", "d", "--calibration", "c.toml", "--", "--depth-level", "0"]
+                .map(String::from)
+                .to_vec();
+        let opts = parse_args(&args).unwrap();
+        let run = Run { mode: "slam", seed: Some(3), skip: 50 };
+        let parsed = ReplayArgs::from_args(run_args(&opts, Path::new("o"), &run)).unwrap();
+        assert_eq!(
+            (parsed.dataset.as_path(), parsed.out.as_path()),
+            (Path::new("d"), Path::new("o"))
+        );
+        let o = parsed.options();
+        assert_eq!((o.mode, o.seed), (Some(TrackMode::SLAM), Some(3)));
+        assert_eq!(o.dataset.calibration, CalibrationSource::Path("c.toml".into()));
+        assert_eq!((o.dataset.skip_frames, o.dataset.depth_level), (50, Some(0)));
+
+        let odometry = Run { mode: "odometry", seed: None, skip: 0 };
+        let demo_opts = parse_args(&["--demo".to_owned()]).unwrap();
+        let parsed = DemoArgs::from_args(run_args(&demo_opts, Path::new("o"), &odometry)).unwrap();
+        assert_eq!(parsed.options().mode, Some(TrackMode::Odometry));
+
+        // Replay arguments the CLI refuses are refused here, with its message.
+        let bad = parse_args(&["--".to_owned(), "--depth-level".to_owned(), "3".to_owned()]);
+        let e = ReplayArgs::from_args(run_args(&bad.unwrap(), Path::new("o"), &run)).unwrap_err();
+        assert!(e.to_string().contains("--depth-level"), "{e}");
     }
 }

@@ -1,7 +1,9 @@
 //! Command-line arguments `replay` and `demo` share: the profile, the mode, SLAM's back-end
-//! options and the depth level.
+//! options and the depth level; and the parser of one subcommand's arguments alone.
 
-use clap::{Args, ValueEnum};
+use std::ffi::OsString;
+
+use clap::{Args, FromArgMatches, ValueEnum};
 use ferroslam_core::config::{QVGA, Resolution, VGA};
 
 use crate::run::{MapScale, Schedule, TrackMode};
@@ -79,4 +81,21 @@ pub struct SlamArgs {
 /// [`MAX_DEPTH_LEVEL`](ferroslam_core::image::MAX_DEPTH_LEVEL).
 pub fn depth_level_parser() -> clap::builder::RangedI64ValueParser<u8> {
     clap::value_parser!(u8).range(0..=i64::from(ferroslam_core::image::MAX_DEPTH_LEVEL))
+}
+
+/// The arguments `args` of the subcommand `name` (`ferroslam-sim NAME ARGS`), parsed as the
+/// command line parses them.
+///
+/// # Errors
+/// The usage error the command line would print.
+pub(super) fn parse_args<A, I, T>(name: &'static str, args: I) -> Result<A, clap::Error>
+where
+    A: Args + FromArgMatches,
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let command =
+        A::augment_args(clap::Command::new(name).bin_name(format!("ferroslam-sim {name}")));
+    let argv = std::iter::once(OsString::from(name)).chain(args.into_iter().map(Into::into));
+    A::from_arg_matches(&command.try_get_matches_from(argv)?)
 }

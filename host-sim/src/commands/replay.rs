@@ -1,19 +1,16 @@
-//! `ferroslam-sim replay DATASET --out DIR`: a TUM-layout recording through the core.
+//! `ferroslam-sim replay DATASET --out DIR`: a TUM-layout recording through the core: its
+//! arguments, turned into [`ReplayOptions`] for the library's [`Replay`], and the console lines.
 
+use std::ffi::OsString;
 use std::path::PathBuf;
 
-use std::time::Instant;
-
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
-use ferroslam_core::geometry::PinholeCamera;
-use nalgebra::Point3;
 
-use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser};
-use crate::dataset::{CalibrationOrigin, CalibrationSource, Dataset, DatasetOptions};
-use crate::plot;
-use crate::report::{Report, run_note, summary, with_depth_level, write_odometry};
-use crate::run::{self, RunOptions};
+use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
+use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
+use crate::replay::{Replay, ReplayOptions};
+use crate::report::{RunOutputs, summary};
 
 /// Arguments of `replay`.
 #[derive(Debug, Args)]
@@ -57,85 +54,65 @@ pub struct ReplayArgs {
     pub depth_level: Option<u8>,
 }
 
-/// Runs `replay`.
+impl ReplayArgs {
+    /// The arguments of `ferroslam-sim replay ARGS`, parsed as the command line parses them: for
+    /// a caller that takes replay arguments from its user (`cargo xtask spread -- REPLAY ARGS`).
+    ///
+    /// # Errors
+    /// The command line's usage error (its `Display` is the message the CLI prints).
+    pub fn from_args<I, T>(args: I) -> Result<Self, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<OsString> + Clone,
+    {
+        parse_args("replay", args)
+    }
+
+    /// The replay these arguments ask for, with a progress bar.
+    pub fn options(&self) -> ReplayOptions {
+        let dataset = DatasetOptions {
+            calibration: match (&self.preset, &self.calibration) {
+                (Some(name), _) => CalibrationSource::Preset(name.clone()),
+                (None, Some(path)) => CalibrationSource::Path(path.clone()),
+                (None, None) => CalibrationSource::File,
+            },
+            profile: self.profile.profile(),
+            skip_frames: self.skip_frames,
+            max_frames: self.max_frames,
+            depth_level: self.depth_level,
+            ..DatasetOptions::default()
+        };
+        ReplayOptions {
+            dataset,
+            seed: self.seed,
+            ..ReplayOptions::new(self.mode.track_mode(&self.slam))
+        }
+    }
+}
+
+/// Runs `replay`: the library's [`Replay`], and its summary on stdout (a note on stderr when the
+/// calibration was chosen by the folder's name).
 ///
 /// # Errors
 /// Any dataset error (it names the file and line), or a file that cannot be written.
 pub fn run(args: &ReplayArgs) -> Result<()> {
-    let profile = args.profile.profile();
-    let opts = DatasetOptions {
-        calibration: match (&args.preset, &args.calibration) {
-            (Some(name), _) => CalibrationSource::Preset(name.clone()),
-            (None, Some(path)) => CalibrationSource::Path(path.clone()),
-            (None, None) => CalibrationSource::File,
-        },
-        profile,
-        skip_frames: args.skip_frames,
-        max_frames: args.max_frames,
-        depth_level: args.depth_level,
-        ..DatasetOptions::default()
-    };
-    let dataset = Dataset::open(&args.dataset, &opts)?;
-    let depth_level = dataset.depth_level();
-    let calibration_note = calibration_note(&dataset);
-    if let CalibrationOrigin::FolderName(_) = dataset.calibration_origin() {
-        eprintln!("note: {calibration_note}");
+    let replay = Replay::open(&args.dataset, args.options())?;
+    if let CalibrationOrigin::FolderName(_) = replay.dataset().calibration_origin() {
+        eprintln!("note: {}", replay.calibration_note());
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let (frames, skipped) = (dataset.len(), dataset.skipped().len());
-    let gt = dataset.groundtruth_trajectory().cloned();
-    if let Some(track_mode) = args.mode.track_mode(&args.slam) {
-        let c = dataset.calibration();
-        let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
-            .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
-        let mut reader = dataset.into_reader(8);
-        let started = Instant::now();
-        let options = RunOptions { seed: args.seed, ..RunOptions::new(profile, track_mode) };
-        let run = run::track(&mut reader, frames, &cam, &options)?;
-        let wall_s = started.elapsed().as_secs_f64();
-        let note = with_depth_level(
-            run_note(&track_mode, profile.name, (run.data.width, run.data.height)),
-            depth_level,
-        );
-        let note = format!("{note}; {calibration_note}");
-        let out = write_odometry(&args.out, &run, gt.as_ref(), profile.name, skipped, note)?;
-        println!("replay {}: {}", args.dataset.display(), summary(&out.report, wall_s));
+    let RunOutputs { report, wall_s, .. } = replay.run(&args.out)?;
+    let dataset = args.dataset.display();
+    if args.mode != ModeArg::DataPath {
+        println!("replay {dataset}: {}", summary(&report, wall_s));
         return Ok(());
     }
-    let mut reader = dataset.into_reader(8);
-    let run = run::data_path(&mut reader, frames)?;
-    let note = format!(
-        "data path only: {} frames decoded, brought to {} ({}x{}) and measured by the core (W(I), \
-         depth coverage); no tracking yet, so no CameraTrajectory.txt and no ATE",
-        run.frames, profile.name, run.width, run.height
-    );
-    let report = Report::data_path(&run, profile.name, skipped, note.clone());
-    report.write(&args.out)?;
-    if let Some(gt) = gt.filter(|g| !g.is_empty()) {
-        let gt: Vec<Point3<f64>> =
-            gt.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect();
-        let path = args.out.join("trajectory.svg");
-        plot::plot_trajectory_top_view(&path, &gt, &[], "ground truth (no estimate yet)")?;
-    }
-    println!("replay {}: {note}", args.dataset.display());
+    println!("replay {dataset}: {}", report.note);
     println!(
         "  W(I) median {:.0}, depth coverage {:.1}%, {} listed frames skipped; wrote {}",
         report.total_variation_median,
         100.0 * report.valid_depth_fraction_mean,
-        skipped,
+        report.skipped_frames,
         args.out.join("report.json").display()
     );
     Ok(())
-}
-
-/// Where the dataset's calibration came from, and whether a lens distortion is removed from its
-/// frames, for the report's note.
-fn calibration_note(dataset: &Dataset) -> String {
-    let origin = dataset.calibration_origin();
-    if dataset.sensor_calibration().distortion.is_none() {
-        format!("calibration: {origin}")
-    } else {
-        format!("calibration: {origin}, lens distortion removed from the frames")
-    }
 }

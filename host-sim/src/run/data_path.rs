@@ -43,17 +43,26 @@ pub struct DataPathRun {
     pub process_s: f64,
 }
 
-/// Runs every frame of `source` through the core's data path, with a progress bar of `expected`
-/// frames on a terminal.
+/// How a run shows its progress: a bar on stderr when it is a terminal, or nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Progress {
+    /// Frames the source is expected to give: the bar's length (a guess does no harm).
+    pub expected_frames: usize,
+    /// Whether to draw the bar (never drawn when stderr is not a terminal). Runs side by side
+    /// in one process turn it off: their bars would overwrite each other.
+    pub bar: bool,
+}
+
+/// Runs every frame of `source` through the core's data path, showing `progress`.
 ///
 /// # Errors
 /// The source's error, with the index of the frame it came from; timestamps that do not increase.
-pub fn data_path<S>(source: &mut S, expected: usize) -> Result<DataPathRun>
+pub fn data_path<S>(source: &mut S, progress: Progress) -> Result<DataPathRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    drive(source, expected, |_| Ok(()))
+    drive(source, progress, |_| Ok(()))
 }
 
 /// [`data_path`], also calling `on_frame` on every frame after the statistics (its time counts as
@@ -61,13 +70,14 @@ where
 ///
 /// # Errors
 /// As [`data_path`], and `on_frame`'s error with the index of the frame.
-pub fn drive<S, F>(source: &mut S, expected: usize, mut on_frame: F) -> Result<DataPathRun>
+pub fn drive<S, F>(source: &mut S, progress: Progress, mut on_frame: F) -> Result<DataPathRun>
 where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
     F: FnMut(&RgbdFrame<'_>) -> Result<()>,
 {
-    let bar = ProgressBar::new(expected as u64);
+    let expected = progress.expected_frames;
+    let bar = if progress.bar { ProgressBar::new(expected as u64) } else { ProgressBar::hidden() };
     if let Ok(style) =
         ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
     {

@@ -29,7 +29,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::tracking::FrontendParams;
 
-pub use data_path::{DataPathRun, FrameStats, data_path, drive, median};
+pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use result::{BackendReport, TrackedFrame, TrackingRun};
 pub use slam::{MapScale, Schedule};
 pub use source::{ProfileSource, ProfileSourceError};
@@ -62,6 +62,14 @@ impl TrackMode {
         map: MapScale::Board,
         window_levels: BackendParams::DEFAULT.window_levels,
     };
+
+    /// The mode's name in reports and on the command line: `odometry` or `slam`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Odometry => "odometry",
+            Self::Slam { .. } => "slam",
+        }
+    }
 }
 
 /// How a tracking run is set up, apart from its source and camera.
@@ -78,12 +86,15 @@ pub struct RunOptions {
     /// The sensor's measurement model as the core is told it (depth range, noise), given to the
     /// front end and the back end.
     pub sensor: SensorModel,
+    /// Whether to draw a progress bar on stderr (only ever drawn on a terminal; see
+    /// [`Progress`]).
+    pub progress_bar: bool,
 }
 
 impl RunOptions {
-    /// `mode` at `profile` with the core's default seed and tunables.
+    /// `mode` at `profile` with the core's default seed and tunables, and a progress bar.
     pub fn new(profile: Resolution, mode: TrackMode) -> Self {
-        Self { profile, mode, seed: None, sensor: SensorModel::DEFAULT }
+        Self { profile, mode, seed: None, sensor: SensorModel::DEFAULT, progress_bar: true }
     }
 }
 
@@ -123,20 +134,21 @@ where
         backend.window_levels = window_levels;
     }
     let vga = options.profile.downsample_levels == 0;
+    let progress = Progress { expected_frames: expected, bar: options.progress_bar };
     match (options.mode, vga) {
         (TrackMode::Odometry, true) => {
-            odometry::run::<640, 480, S>(source, expected, cam, odometry)
+            odometry::run::<640, 480, S>(source, progress, cam, odometry)
         }
         (TrackMode::Odometry, false) => {
-            odometry::run::<320, 240, S>(source, expected, cam, odometry)
+            odometry::run::<320, 240, S>(source, progress, cam, odometry)
         }
         (TrackMode::Slam { quota, schedule, map, .. }, vga) => {
             let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
             match (map, vga) {
-                (MapScale::Board, false) => slam::run::<Qvga, S>(source, expected, cam, &setup),
-                (MapScale::Board, true) => slam::run::<Vga, S>(source, expected, cam, &setup),
-                (MapScale::Host, false) => slam::run::<HostQvga, S>(source, expected, cam, &setup),
-                (MapScale::Host, true) => slam::run::<HostVga, S>(source, expected, cam, &setup),
+                (MapScale::Board, false) => slam::run::<Qvga, S>(source, progress, cam, &setup),
+                (MapScale::Board, true) => slam::run::<Vga, S>(source, progress, cam, &setup),
+                (MapScale::Host, false) => slam::run::<HostQvga, S>(source, progress, cam, &setup),
+                (MapScale::Host, true) => slam::run::<HostVga, S>(source, progress, cam, &setup),
             }
         }
     }

@@ -7,7 +7,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::map::BoardMap;
 use ferroslam_core::tracking::{Frontend, FrontendParams, FrontendState};
 
-use super::data_path::drive;
+use super::data_path::{Progress, drive};
 use super::result::{TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
@@ -17,7 +17,7 @@ use crate::trajectory::{StampedPose, Trajectory};
 /// As [`drive`]; a frame the front end rejects (size or timestamp).
 pub(super) fn run<const W: usize, const H: usize, S>(
     source: &mut S,
-    expected: usize,
+    progress: Progress,
     cam: &PinholeCamera,
     params: FrontendParams,
 ) -> Result<TrackingRun>
@@ -29,7 +29,7 @@ where
     let mut frontend: Box<Frontend<W, H>> = Box::new(Frontend::with_params(params));
     let mut map: Box<BoardMap> = Box::default();
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
-    let data = drive(source, expected, |frame| {
+    let data = drive(source, progress, |frame| {
         let r = frontend.process(frame, cam, &mut map)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         if r.state == FrontendState::Initializing {

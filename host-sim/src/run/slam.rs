@@ -18,7 +18,7 @@ use ferroslam_core::map::KeyFrameId;
 use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
 use ferroslam_core::tracking::{FrameResult, FrontendParams, FrontendState};
 
-use super::data_path::drive;
+use super::data_path::{Progress, drive};
 use super::result::{BackendReport, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
@@ -223,7 +223,7 @@ pub struct Setup {
 /// As [`drive`]; a back-end error.
 pub fn run<P: ProfileTypes, S>(
     source: &mut S,
-    expected: usize,
+    progress: Progress,
     cam: &PinholeCamera,
     setup: &Setup,
 ) -> Result<TrackingRun>
@@ -238,7 +238,7 @@ where
     let mut record = Record::default();
     let mut stepper =
         Stepper { slam: &mut slam, cam, quota, schedule, record: &mut record, owed: false };
-    let data = drive(source, expected, |frame| {
+    let data = drive(source, progress, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         if r.state == FrontendState::Initializing {
