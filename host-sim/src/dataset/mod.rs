@@ -36,6 +36,7 @@ mod error;
 mod lists;
 mod reader;
 pub mod registration;
+pub mod selection;
 #[cfg(test)]
 mod tests;
 pub mod undistort;
