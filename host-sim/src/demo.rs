@@ -178,6 +178,19 @@ fn data_path(
     Ok(RunOutputs { report, evaluation: Some(evaluation), wall_s })
 }
 
+/// Writes the sequence `options` render into `dir` as a TUM RGB-D folder (see
+/// [`crate::synth::write_tum_folder`]), with the depth noise the demo tells the core, so that a
+/// replay of the folder weighs depth as the demo does; returns the frames written. `made_by` names
+/// the command in the folder's files.
+///
+/// # Errors
+/// Invalid options, or a file that cannot be written.
+pub fn write_dataset(dir: &Path, options: &DemoOptions, made_by: &str) -> Result<usize> {
+    let sequence = SyntheticSequence::new(options.synth.clone())?;
+    let k = sensor_depth_noise(options.synth.depth_noise_k);
+    Ok(crate::synth::write_tum_folder(&sequence, dir, made_by, k)?)
+}
+
 /// The inverse-depth noise of the demo's depth as the tracker reads it, 1/m, when the renderer
 /// adds none: the robust standard deviation (1.4826 MAD) of `1/z_true - 1/z_read` over 25 k
 /// tracked landmarks of the default demo at QVGA, with `z_read` the halved depth image read at

@@ -11,6 +11,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use ferroslam_core::config::SensorModel;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
@@ -109,15 +110,23 @@ impl Replay {
         let (profile, depth_level) = (dataset.profile(), dataset.depth_level());
         let (frames, skipped) = (dataset.len(), dataset.skipped().len());
         let gt = dataset.groundtruth_trajectory().cloned();
-        let c = dataset.calibration();
+        let c = *dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
             .map_err(|e| anyhow::anyhow!("calibration: {e}"))?;
         let mut reader = dataset.into_reader(READ_AHEAD_FRAMES);
         let started = Instant::now();
+        let default = RunOptions::new(profile, mode);
+        let sensor = match c.depth_noise_coeff_per_m {
+            Some(depth_noise_coeff_per_m) => {
+                SensorModel { depth_noise_coeff_per_m, ..default.sensor }
+            }
+            None => default.sensor,
+        };
         let run_options = RunOptions {
             seed: options.seed,
             progress_bar: options.progress_bar,
-            ..RunOptions::new(profile, mode)
+            sensor,
+            ..default
         };
         let run = run::track(&mut reader, frames, &cam, &run_options)?;
         let wall_s = started.elapsed().as_secs_f64();

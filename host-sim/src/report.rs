@@ -47,6 +47,12 @@ pub struct Report {
     pub tracked_frames: usize,
     /// Frames the front end was lost in: their pose is the motion-model prediction.
     pub lost_frames: usize,
+    /// Frames where tracking restarted from a keyframe at the predicted pose after a loss: a pose
+    /// the images did not confirm.
+    pub reinitialized_frames: usize,
+    /// Frames before the first keyframe: no pose, no world frame yet. With the three above they
+    /// add up to `frames` (tracking modes).
+    pub initializing_frames: usize,
     /// Keyframes made (0 in data-path mode).
     pub keyframes: usize,
     /// ATE RMSE of CameraTrajectory.txt against ground truth, metres; null without one of them
@@ -102,6 +108,8 @@ impl Report {
             frames: run.frames,
             tracked_frames: 0,
             lost_frames: 0,
+            reinitialized_frames: 0,
+            initializing_frames: 0,
             keyframes: 0,
             ate_rmse_m: None,
             evaluation_error: None,
@@ -144,6 +152,8 @@ impl Report {
             mode: if run.backend.is_some() { "slam" } else { "odometry" },
             tracked_frames: run.tracked_frames,
             lost_frames: run.lost_frames,
+            reinitialized_frames: run.reinitialized_frames,
+            initializing_frames: run.initializing_frames,
             keyframes: run.keyframes.len(),
             ate_rmse_m: evaluation.map(|e| e.ate.rmse),
             evaluation_error: None,
@@ -274,13 +284,16 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
         (None, None) => "n/a (no ground truth)".to_owned(),
     };
     format!(
-        "{} ({}): {} frames, {} tracked, {} lost, {} keyframes; ATE RMSE {ate}; RPE {}; \
-         {:.1} s wall ({:.1} ms median per frame in the core); core state {} bytes",
+        "{} ({}): {} frames: {} tracked, {} re-initialised, {} lost, {} before the first \
+         keyframe; {} keyframes; ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
+         in the core); core state {} bytes",
         report.mode,
         report.profile,
         report.frames,
         report.tracked_frames,
+        report.reinitialized_frames,
         report.lost_frames,
+        report.initializing_frames,
         report.keyframes,
         report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
         wall_s,

@@ -412,6 +412,8 @@ mod tests {
             per_frame,
             tracked_frames: fw.len(),
             lost_frames: 0,
+            reinitialized_frames: 0,
+            initializing_frames: 0,
             state_bytes: 0,
             backend: None,
         }

@@ -8,7 +8,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
-use crate::demo::{DemoOptions, demo};
+use crate::demo::{DemoOptions, demo, write_dataset};
 use crate::report::{RunOutputs, summary};
 use crate::synth::SynthOptions;
 
@@ -61,6 +61,13 @@ pub struct DemoArgs {
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
     #[arg(long, value_parser = depth_level_parser())]
     pub depth_level: Option<u8>,
+    /// Write the rendered sequence (as `--frames`, `--depth-noise`, `--holes`, `--blur`,
+    /// `--shake`, `--fast-rotation` and `--seed` make it) into this folder as a TUM RGB-D
+    /// recording (gray and depth PNGs, rgb.txt, depth.txt, groundtruth.txt, calibration.toml)
+    /// instead of running it: `replay`, `cargo xtask firmware-replay` and `cargo xtask budgets`
+    /// then run on it like on any recording.
+    #[arg(long, value_name = "DIR")]
+    pub write_dataset: Option<PathBuf>,
 }
 
 impl DemoArgs {
@@ -75,6 +82,29 @@ impl DemoArgs {
         T: Into<OsString> + Clone,
     {
         parse_args("demo", args)
+    }
+
+    /// The options that shape the rendered sequence, as command-line flags (for the README of a
+    /// written dataset).
+    fn synth_flags(&self) -> String {
+        let mut flags = format!("--frames {} --seed {}", self.frames, self.seed);
+        for (name, value, default) in [
+            ("--depth-noise", self.depth_noise, 0.0),
+            ("--holes", self.holes, 0.0),
+            ("--shake", self.shake, 0.0),
+        ] {
+            if value != default {
+                flags.push_str(&format!(" {name} {value}"));
+            }
+        }
+        if self.blur != 1 {
+            flags.push_str(&format!(" --blur {}", self.blur));
+        }
+        if self.fast_rotation {
+            flags.push_str(" --fast-rotation");
+        }
+        flags.push_str(" --write-dataset DIR");
+        flags
     }
 
     /// The demo these arguments ask for, with a progress bar.
@@ -104,6 +134,12 @@ impl DemoArgs {
 /// # Errors
 /// Invalid options, or a file that cannot be written.
 pub fn run(args: &DemoArgs) -> Result<()> {
+    if let Some(dir) = &args.write_dataset {
+        let made_by = format!("ferroslam-sim demo {}", args.synth_flags());
+        let frames = write_dataset(dir, &args.options(), &made_by)?;
+        println!("demo: wrote {frames} rendered frames as a TUM RGB-D folder in {}", dir.display());
+        return Ok(());
+    }
     let out = &args.out;
     let RunOutputs { report, evaluation, wall_s } = demo(out, &args.options())?;
     if args.mode != ModeArg::DataPath {

@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
+use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
 use crate::replay::{Replay, ReplayOptions};
 use crate::report::{RunOutputs, summary};
@@ -37,6 +38,12 @@ pub struct ReplayArgs {
     /// Process at most this many frames (the earliest, after `--skip-frames`).
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Play these ranges of the recording's frames in this order, e.g. `0-999,998-0` (out and
+    /// back) or `0-700,100-999` (carried back to a place seen before); frame indices from 0, a
+    /// range may run backwards. Timestamps are renumbered to keep increasing and the ground truth
+    /// follows its frames. `--skip-frames` and `--max-frames` apply to the frames played.
+    #[arg(long, value_name = "A-B,C-D,...")]
+    pub frames: Option<FrameSelection>,
     /// What runs on each frame.
     #[arg(long, value_enum, default_value = "slam")]
     pub mode: ModeArg,
@@ -79,6 +86,7 @@ impl ReplayArgs {
             profile: self.profile.profile(),
             skip_frames: self.skip_frames,
             max_frames: self.max_frames,
+            frames: self.frames.clone(),
             depth_level: self.depth_level,
             ..DatasetOptions::default()
         };

@@ -36,6 +36,9 @@ pub struct Calibration {
     /// The colour camera's lens distortion ([`Distortion::NONE`] for a pinhole camera, and for the
     /// frames [`super::Dataset::load_frame`] gives, which it undistorts).
     pub distortion: Distortion,
+    /// The depth sensor's noise as the core weighs it (`sigma_z = k z^2`: `k` in 1/m, the
+    /// `depth_noise_coeff_per_m` key); `None`: the core's default, a Kinect v1-class sensor.
+    pub depth_noise_coeff_per_m: Option<f32>,
 }
 
 /// A lens distortion in OpenCV's model (radial `k1`, `k2`, `k3` and tangential `p1`, `p2`; TUM
@@ -81,9 +84,11 @@ const FLOAT_KEYS: [&str; 5] = ["fx", "fy", "cx", "cy", "depth_scale"];
 
 impl Calibration {
     /// Reads and validates a `calibration.toml` with the keys `fx`, `fy`, `cx`, `cy`,
-    /// `depth_scale` (numbers) and `width`, `height` (integers), and an optional `[depth]` table
-    /// for depth that is not registered to colour: the depth camera's `fx`, `fy`, `cx`, `cy` and
-    /// its offset `tx`, `ty`, `tz` in metres (see [`DepthCamera`]). Other keys are ignored.
+    /// `depth_scale` (numbers) and `width`, `height` (integers), an optional `[depth]` table for
+    /// depth that is not registered to colour: the depth camera's `fx`, `fy`, `cx`, `cy` and its
+    /// offset `tx`, `ty`, `tz` in metres (see [`DepthCamera`]), an optional lens distortion and an
+    /// optional `depth_noise_coeff_per_m` (see [`Calibration::depth_noise_coeff_per_m`]). Other
+    /// keys are ignored.
     ///
     /// # Errors
     /// [`DatasetError::Io`] when the file cannot be read; [`DatasetError::CalibrationSyntax`],
@@ -118,7 +123,22 @@ impl Calibration {
             Some(other) => return Err(wrong_type(path, "depth", other, "must be a table")),
         };
         let distortion = distortion(&table, path)?;
-        let calibration = Self { fx, fy, cx, cy, width, height, depth_scale, depth, distortion };
+        let depth_noise_coeff_per_m = match table.get("depth_noise_coeff_per_m") {
+            None => None,
+            Some(_) => Some(float_key(&table, path, "depth_noise_coeff_per_m")?),
+        };
+        let calibration = Self {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+            depth_scale,
+            depth,
+            distortion,
+            depth_noise_coeff_per_m,
+        };
         calibration.validate(path)?;
         Ok(calibration)
     }
@@ -141,7 +161,19 @@ impl Calibration {
         };
         let distortion = Distortion { k1, k2, p1, p2, k3 };
         let (width, height, depth_scale) = (640, 480, 5000.0);
-        Ok(Self { fx, fy, cx, cy, width, height, depth_scale, depth: None, distortion })
+        let depth_noise_coeff_per_m = None;
+        Ok(Self {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+            depth_scale,
+            depth: None,
+            distortion,
+            depth_noise_coeff_per_m,
+        })
     }
 
     /// The preset a TUM RGB-D folder's name implies (`rgbd_dataset_freiburg1_xyz` and the like:
@@ -192,6 +224,9 @@ impl Calibration {
         let values = [self.fx, self.fy, self.cx, self.cy, self.depth_scale];
         for (key, v) in FLOAT_KEYS.into_iter().zip(values) {
             positive(key, v)?;
+        }
+        if let Some(k) = self.depth_noise_coeff_per_m {
+            positive("depth_noise_coeff_per_m", k)?;
         }
         for (key, v) in [("width", self.width), ("height", self.height)] {
             if v == 0 {

@@ -148,6 +148,15 @@ pub enum DatasetError {
         levels: u8,
     },
 
+    /// The frame ranges to play (`--frames`) do not fit the recording.
+    #[error("{}: {source}", dir.display())]
+    Selection {
+        /// The dataset folder.
+        dir: PathBuf,
+        /// What is wrong with the ranges.
+        source: super::selection::SelectionError,
+    },
+
     /// No frame of the folder can be replayed.
     #[error("no usable frames in {}: {reason}", dir.display())]
     EmptyDataset {

@@ -51,6 +51,7 @@ use crate::frame::halve_frame;
 pub use calibration::{Calibration, DepthCamera, Distortion};
 pub use error::DatasetError;
 pub use reader::DatasetReader;
+use selection::{FrameSelection, SelectionError};
 use undistort::Undistorter;
 
 /// Ground-truth poses are the trajectory module's type (re-exported for convenience).
@@ -84,6 +85,11 @@ pub struct DatasetOptions {
     pub skip_frames: usize,
     /// Keep at most this many associated frames, the earliest (default: all).
     pub max_frames: Option<usize>,
+    /// Play these ranges of the associated frames, in this order, instead of all of them in
+    /// order (`--frames`; see [`selection`]): timestamps are renumbered to keep increasing and
+    /// the ground truth follows its frames. `skip_frames` and `max_frames` then apply to the
+    /// frames played. Default `None`.
+    pub frames: Option<FrameSelection>,
     /// Halve the depth this many more times than the gray image (see
     /// [`OwnedFrame::coarsen_depth`]); default `None`: the profile's `depth_level`, as the
     /// firmware's frame store keeps it (1 at QVGA).
@@ -100,6 +106,7 @@ impl Default for DatasetOptions {
             profile: QVGA,
             skip_frames: 0,
             max_frames: None,
+            frames: None,
             depth_level: None,
             max_dt_s: ASSOCIATION_MAX_DT_S,
         }
@@ -203,7 +210,7 @@ impl Dataset {
         let depth_list = dir.join("depth.txt");
         let rgb = lists::parse_image_list(&rgb_list, &lists::read_text(&rgb_list)?, dir)?;
         let depth = lists::parse_image_list(&depth_list, &lists::read_text(&depth_list)?, dir)?;
-        let groundtruth = read_groundtruth(&dir.join("groundtruth.txt"))?;
+        let mut groundtruth = read_groundtruth(&dir.join("groundtruth.txt"))?;
 
         let mut skipped = Vec::new();
         let rgb_present = keep_present(&rgb_list, rgb, &mut skipped);
@@ -215,6 +222,11 @@ impl Dataset {
         }
         skipped.sort_by(|a, b| a.list.cmp(&b.list).then(a.line.cmp(&b.line)));
         let associated = frames.len();
+        if let Some(selection) = &opts.frames {
+            let played = select(&frames, groundtruth.as_ref(), selection, opts.max_dt_s)
+                .map_err(|e| DatasetError::Selection { dir: dir.to_owned(), source: e })?;
+            (frames, groundtruth) = played;
+        }
         frames.drain(..opts.skip_frames.min(frames.len()));
         if let Some(max) = opts.max_frames {
             frames.truncate(max);
@@ -429,6 +441,34 @@ fn open_calibration(
             (Calibration::load(path)?, CalibrationOrigin::File(path.clone()))
         }
     })
+}
+
+/// The frames `selection` plays, renumbered, and the ground truth that follows them (see
+/// [`selection`]).
+fn select(
+    frames: &[AssociatedFrame],
+    groundtruth: Option<&Trajectory>,
+    selection: &FrameSelection,
+    max_dt_s: f64,
+) -> Result<(Vec<AssociatedFrame>, Option<Trajectory>), SelectionError> {
+    let order = selection.indices(frames.len())?;
+    let times: Vec<f64> = frames.iter().map(|f| f.rgb_timestamp_s).collect();
+    let played_s = selection::renumbered_times(&times, &order);
+    let original_s: Vec<f64> = order.iter().filter_map(|&i| times.get(i).copied()).collect();
+    let played: Vec<AssociatedFrame> = order
+        .iter()
+        .zip(&played_s)
+        .filter_map(|(&i, &t)| frames.get(i).map(|f| (f, t)))
+        .map(|(f, t)| AssociatedFrame {
+            rgb_timestamp_s: t,
+            // The depth keeps its offset from the colour image.
+            depth_timestamp_s: f.depth_timestamp_s - f.rgb_timestamp_s + t,
+            ..f.clone()
+        })
+        .collect();
+    let followed = groundtruth
+        .map(|gt| selection::following_groundtruth(gt, &original_s, &played_s, max_dt_s));
+    Ok((played, followed))
 }
 
 /// Reads `groundtruth.txt` if it exists, with the trajectory module's TUM reader.

@@ -84,6 +84,7 @@ mod tests {
             depth_scale: 1000.0,
             depth: None,
             distortion: crate::dataset::Distortion::NONE,
+            depth_noise_coeff_per_m: None,
         }
     }
 

@@ -53,6 +53,8 @@ where
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
+        reinitialized_frames: stats.reinitializations as usize,
+        initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<Frontend<W, H>>() + std::mem::size_of::<BoardMap>(),
         backend: None,
     })

@@ -105,10 +105,14 @@ pub struct TrackingRun {
     pub keyframes: Trajectory,
     /// Per-frame front-end figures.
     pub per_frame: Vec<TrackedFrame>,
-    /// Frames with an estimated pose.
+    /// Frames with a pose estimated from their images.
     pub tracked_frames: usize,
-    /// Frames in the lost state.
+    /// Frames not tracked: their pose is the motion model's prediction.
     pub lost_frames: usize,
+    /// Frames where tracking restarted from a keyframe at the predicted pose after a loss.
+    pub reinitialized_frames: usize,
+    /// Frames before the first keyframe (no pose). The four counts add up to the frames.
+    pub initializing_frames: usize,
     /// Bytes of the core's state.
     pub state_bytes: usize,
     /// The back end's figures (SLAM mode).

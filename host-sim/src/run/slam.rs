@@ -295,6 +295,8 @@ where
         per_frame,
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
+        reinitialized_frames: stats.reinitializations as usize,
+        initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
     })

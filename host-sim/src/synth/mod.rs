@@ -45,6 +45,7 @@ pub mod rng;
 mod scene;
 mod source;
 mod texture;
+mod tum_folder;
 
 use std::path::PathBuf;
 
@@ -56,6 +57,7 @@ use crate::trajectory::{StampedPose, Trajectory};
 pub use path::{START_PITCH_DEG, START_POSITION_M};
 pub use scene::{ROOM_MAX, ROOM_MIN};
 pub use source::{SynthSource, write_pngs};
+pub use tum_folder::write_tum_folder;
 
 /// Frame rate of the synthetic sequence, Hz.
 pub const FRAME_RATE_HZ: f64 = 30.0;
@@ -207,6 +209,15 @@ pub enum SynthError {
     /// The frame buffers could not be viewed as core images (a bug).
     #[error("frame buffers do not form an image: {0}")]
     Image(#[from] ImageError),
+    /// A file could not be written.
+    #[error("cannot write {}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
     /// A PNG could not be written.
     #[error("cannot write {path}: {source}")]
     Png {
