@@ -137,6 +137,27 @@ pub const QVGA: Resolution = Resolution { name: "qvga", downsample_levels: 1, de
 /// The full resolution, for hosts with memory to spare (depth at full resolution too).
 pub const VGA: Resolution = Resolution { name: "vga", downsample_levels: 0, depth_level: 0 };
 
+/// The processing width the front end's pixel parameters (template and search sizes, distances
+/// between features) are stated for: the reference board's QVGA.
+pub const REFERENCE_WIDTH_PX: usize = 320;
+
+/// The pyramid level the front end tracks on for frames `width` pixels wide: 1 (the frame halved
+/// once) when halving brings the width nearer [`REFERENCE_WIDTH_PX`] than it is (in ratio: above
+/// `sqrt 2` times it), else 0. A front end without room for the halved frame tracks on level 0.
+/// Why: the templates the front end keeps are 16 x 16 pixels at any resolution, so tracking on
+/// the level nearest the reference keeps what they cover of the scene; docs/decisions.md,
+/// "Tracking on the pyramid level nearest the reference".
+pub const fn tracking_level(width: usize) -> u8 {
+    // width > sqrt(2) x 320, in integers: width^2 > 2 x 320^2.
+    if width * width > 2 * REFERENCE_WIDTH_PX * REFERENCE_WIDTH_PX { 1 } else { 0 }
+}
+
+/// How much larger the front end's pixel parameters are at a tracking level `width` pixels wide
+/// than at [`REFERENCE_WIDTH_PX`] (1 at QVGA, and at VGA tracked on level 1).
+pub fn pixel_scale(width: usize) -> f32 {
+    width as f32 / REFERENCE_WIDTH_PX as f32
+}
+
 /// A profile: the resolution the pipeline runs at and the capacities of its map, named once by
 /// a type (`Slam<Qvga>`). The core's types for a profile are chosen from these values in
 /// `system`.
@@ -277,6 +298,12 @@ mod tests {
         assert_eq!((VGA.max_width(), VGA.max_height()), (640, 480));
         assert_eq!(core::mem::size_of::<QvgaGrayBuffer>(), 320 * 240);
         assert_eq!(core::mem::size_of::<QvgaDepthBuffer>(), 160 * 120 * 2);
+    }
+
+    #[test]
+    fn the_tracking_level_is_the_one_nearest_the_reference() {
+        assert_eq!([320, 424, 452, 453, 640, 848].map(tracking_level), [0, 0, 0, 1, 1, 1]);
+        assert_eq!((pixel_scale(320), pixel_scale(424)), (1.0, 1.325));
     }
 
     #[test]

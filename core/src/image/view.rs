@@ -253,11 +253,17 @@ pub const MAX_DEPTH_LEVEL: u8 = 2;
 /// holds the depth in a quarter of the memory: the reference board keeps level 1
 /// ([`QVGA`](crate::config::QVGA)`.depth_level`; the trade-off: docs/decisions.md, "Board RAM:
 /// depth level, map and BA capacities").
+///
+/// The depth may also be finer than the image: [`DepthView::for_coarser_image`] reads the same
+/// depth for an image halved once more (a front end tracking on a pyramid level above the
+/// depth's), where one image pixel covers `2 x 2` depth pixels.
 #[derive(Debug, Clone, Copy)]
 pub struct DepthView<'a> {
     raw: ImageView<'a, u16>,
     depth_scale: f32,
     level: u8,
+    /// Halvings of the image beyond the depth's (at most one of `level` and `finer` is not 0).
+    finer: u8,
 }
 
 impl<'a> DepthView<'a> {
@@ -287,7 +293,16 @@ impl<'a> DepthView<'a> {
         if level > MAX_DEPTH_LEVEL {
             return Err(ImageError::InvalidDepthLevel(level));
         }
-        Ok(Self { raw, depth_scale, level })
+        Ok(Self { raw, depth_scale, level, finer: 0 })
+    }
+
+    /// This depth read for an image `levels` halvings coarser than the one it goes with (image
+    /// pixel `(x, y)` of the coarser image is pixel `(2^levels (x + 0.5) - 0.5, ...)` of this
+    /// one's); `None` when that is more than one halving finer than the image.
+    pub fn for_coarser_image(self, levels: u8) -> Option<Self> {
+        let (level, finer) =
+            if levels <= self.level { (self.level - levels, 0) } else { (0, levels - self.level) };
+        (finer <= 1).then_some(Self { level, finer, ..self })
     }
 
     /// The raw samples, in depth pixels.
@@ -307,12 +322,12 @@ impl<'a> DepthView<'a> {
 
     /// Width of the image it covers, image pixels (`2^level` times the raw width).
     pub fn width(&self) -> usize {
-        self.raw.width() << self.level
+        (self.raw.width() << self.level) >> self.finer
     }
 
     /// Height of the image it covers, image pixels.
     pub fn height(&self) -> usize {
-        self.raw.height() << self.level
+        (self.raw.height() << self.level) >> self.finer
     }
 
     /// `(width, height)` of the image it covers, image pixels.
@@ -323,6 +338,10 @@ impl<'a> DepthView<'a> {
     /// Depth at image pixel `(x, y)` in metres (the reading of the depth pixel holding it), or
     /// `None` outside the image or where the sensor gave no reading.
     pub fn depth_m(&self, x: usize, y: usize) -> Option<f32> {
+        if self.finer > 0 {
+            // The depth pixel at the image pixel's centre, rounded down and right: (2x + 0.5).
+            return self.raw_m(x << self.finer, y << self.finer);
+        }
         self.raw_m(x >> self.level, y >> self.level)
     }
 
@@ -351,7 +370,12 @@ impl<'a> DepthView<'a> {
         }
         // Image pixel centre `u` is depth coordinate `(u + 0.5) / 2^l - 0.5`; the half depth
         // pixel at each border has no neighbour beyond it and takes the border's reading.
-        let (u, v) = if self.level == 0 {
+        let (u, v) = if self.finer > 0 {
+            let s = f32::from(1u8 << self.finer);
+            let (wd, hd) = self.raw.size();
+            let at = |p: f32, n: usize| ((p + 0.5) * s - 0.5).clamp(0.0, (n - 1) as f32);
+            (at(u, wd), at(v, hd))
+        } else if self.level == 0 {
             (u, v)
         } else {
             let s = 1.0 / f32::from(1u8 << self.level);
@@ -439,6 +463,34 @@ mod tests {
             DepthView::with_level(view, 1.0, MAX_DEPTH_LEVEL + 1).unwrap_err(),
             ImageError::InvalidDepthLevel(MAX_DEPTH_LEVEL + 1)
         );
+    }
+
+    #[test]
+    fn a_finer_depth_reads_in_the_coarser_image_s_pixels() {
+        // A slanted plane, z = 1 + 0.01 x + 0.02 y metres at depth pixel (x, y) of a 16 x 12
+        // depth image, read for an 8 x 6 image: its pixel (u, v) is depth pixel (2u + 0.5, ...).
+        let plane = |x: f32, y: f32| 1.0 + 0.01 * x + 0.02 * y;
+        let mut raw = [0u16; 16 * 12];
+        for (k, r) in raw.iter_mut().enumerate() {
+            *r = (plane((k % 16) as f32, (k / 16) as f32) * 10_000.0).round() as u16;
+        }
+        let view = ImageView::packed(&raw, 16, 12).unwrap();
+        let full = DepthView::new(view, 10_000.0).unwrap();
+        let coarse = full.for_coarser_image(1).unwrap();
+        assert_eq!(coarse.size(), (8, 6));
+        for (u, v) in [(0.0f32, 0.0f32), (3.25, 2.5), (6.9, 4.1)] {
+            let z = coarse.depth_at(u, v, 0.5).unwrap();
+            let (x, y) = (2.0 * u + 0.5, 2.0 * v + 0.5);
+            assert!((z - plane(x, y)).abs() < 2e-4, "({u}, {v}): {z} vs {}", plane(x, y));
+            assert_eq!(z, full.depth_at(x, y, 0.5).unwrap());
+        }
+        assert_eq!(coarse.depth_m(3, 2), full.depth_m(6, 4));
+        assert_eq!(coarse.depth_at(7.5, 0.0, 0.5), None, "outside the coarser image");
+        // A level-1 depth read for an image halved once more is a plain view of it.
+        let half = DepthView::with_level(view, 10_000.0, 1).unwrap();
+        let same = half.for_coarser_image(1).unwrap();
+        assert_eq!((same.level(), same.size()), (0, (16, 12)));
+        assert!(full.for_coarser_image(2).is_none(), "two halvings finer: not supported");
     }
 
     #[test]
