@@ -152,6 +152,12 @@ pub const fn tracking_level(width: usize) -> u8 {
     if width * width > 2 * REFERENCE_WIDTH_PX * REFERENCE_WIDTH_PX { 1 } else { 0 }
 }
 
+/// Pixels of the buffer a front end for frames up to `width` x `height` needs to track on its
+/// level: the halved frame's when [`tracking_level`] is 1, else none.
+pub const fn tracking_buffer_pixels(width: usize, height: usize) -> usize {
+    if tracking_level(width) == 1 { (width / 2) * (height / 2) } else { 0 }
+}
+
 /// How much larger the front end's pixel parameters are at a tracking level `width` pixels wide
 /// than at [`REFERENCE_WIDTH_PX`] (1 at QVGA, and at VGA tracked on level 1).
 pub fn pixel_scale(width: usize) -> f32 {

@@ -1,7 +1,7 @@
 //! The built-in synthetic sequence through the core, evaluated against its exact ground truth:
 //! the library behind `ferroslam-sim demo`, which `cargo xtask spread --demo` calls in process.
 //!
-//! [`demo`] renders the sequence ([`crate::synth`]) at the sensor's 640 x 480, brings it to the
+//! [`demo`] renders the sequence ([`crate::synth`]) at the sensor's size (640 x 480 unless told), brings it to the
 //! processing profile with the core's downsampling ([`ProfileSource`]), runs it through the data
 //! path and, unless the options ask for the data path alone, the odometry or SLAM tracker
 //! ([`run::track`]), writes the output folder and returns what it wrote. Nothing here prints.
@@ -27,7 +27,7 @@ use crate::trajectory::{StampedPose, Trajectory};
 pub struct DemoOptions {
     /// The synthetic sequence: frames, depth noise and holes, blur, shake, speed, seed.
     pub synth: SynthOptions,
-    /// The processing resolution (frames are rendered at 640 x 480, like the sensor's).
+    /// The processing resolution (frames are rendered at `synth`'s size, like a sensor's).
     pub profile: Resolution,
     /// Rendered frames skipped at the start: the run starts that many frames into the path (the
     /// ground truth covers every frame).
@@ -123,9 +123,11 @@ fn track(
     let run = run::track(&mut source, frames, &cam, &run_options)?;
     let wall_s = started.elapsed().as_secs_f64();
     let note = format!(
-        "{} synthetic frames rendered at 640x480; {}; depth noise given to the core {:.1e} 1/m in \
+        "{} synthetic frames rendered at {}x{}; {}; depth noise given to the core {:.1e} 1/m in \
          inverse depth",
         run.data.frames,
+        options.synth.width,
+        options.synth.height,
         with_depth_level(
             run_note(&mode, profile.name, (run.data.width, run.data.height)),
             depth_level
@@ -166,11 +168,11 @@ fn data_path(
     plot::plot_report(&evaluation, &out.join("trajectory.svg"), &out.join("ate.svg"))?;
 
     let note = format!(
-        "data path only: {} synthetic frames rendered at 640x480, brought to {} ({}x{}) and \
+        "data path only: {} synthetic frames rendered at {}x{}, brought to {} ({}x{}) and \
          measured by the core; no tracker yet, so the trajectory evaluated is simulated dead \
          reckoning (ground-truth motion per frame plus seeded noise of {ODOM_NOISE_M} m and \
          {ODOM_NOISE_DEG} deg; baseline_trajectory.txt), not an estimate from the images",
-        run.frames, profile.name, run.width, run.height
+        run.frames, options.synth.width, options.synth.height, profile.name, run.width, run.height
     );
     let report = Report::data_path(&run, profile.name, 0, note);
     report.write(out)?;

@@ -108,7 +108,8 @@ impl<P: ProfileTypes> Slam<P> {
         work_quota: u32,
     ) -> Result<BackendStatus, BackendError> {
         self.tell_backend();
-        self.backend.step(&mut self.map, cam, work_quota)
+        let cam = self.frontend.tracking_camera(cam);
+        self.backend.step(&mut self.map, &cam, work_quota)
     }
 
     /// The front end with the map, and the back end's solve, borrowed apart for one frame: `Some`

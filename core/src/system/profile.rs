@@ -4,7 +4,7 @@
 //! whatever their capacities.
 
 use crate::backend::{Backend, BackendError, BackendParams, BackendStats, BackendStatus, SolveJob};
-use crate::config::{HostQvga, HostVga, Profile, Qvga, Vga};
+use crate::config::{HostQvga, HostVga, Profile, Qvga, Vga, tracking_buffer_pixels};
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
 use crate::map::{KeyFrame, KeyFrameId, Landmark, LandmarkId, Map};
@@ -47,6 +47,10 @@ pub trait Tracker<M> {
 
     /// Running totals.
     fn stats(&self) -> FrontendStats;
+
+    /// The camera of the level it tracks frames seen by `cam` on, which the map's observations
+    /// are in (see [`Frontend::tracking_camera`]).
+    fn tracking_camera(&self, cam: &PinholeCamera) -> PinholeCamera;
 }
 
 /// Reading a map whatever its capacities (see [`Map`]).
@@ -92,8 +96,8 @@ pub trait Adjuster<M> {
     fn params(&self) -> &BackendParams;
 }
 
-impl<const W: usize, const H: usize, const K: usize, const L: usize> Tracker<Map<K, L>>
-    for Frontend<W, H>
+impl<const W: usize, const H: usize, const C: usize, const K: usize, const L: usize>
+    Tracker<Map<K, L>> for Frontend<W, H, C>
 {
     fn process(
         &mut self,
@@ -106,6 +110,10 @@ impl<const W: usize, const H: usize, const K: usize, const L: usize> Tracker<Map
 
     fn stats(&self) -> FrontendStats {
         Frontend::stats(self)
+    }
+
+    fn tracking_camera(&self, cam: &PinholeCamera) -> PinholeCamera {
+        Self::tracking_camera(cam)
     }
 }
 
@@ -178,6 +186,12 @@ macro_rules! profile_types {
             type Frontend = Frontend<
                 { <$profile as Profile>::RESOLUTION.max_width() },
                 { <$profile as Profile>::RESOLUTION.max_height() },
+                {
+                    tracking_buffer_pixels(
+                        <$profile as Profile>::RESOLUTION.max_width(),
+                        <$profile as Profile>::RESOLUTION.max_height(),
+                    )
+                },
             >;
             type Map = Map<
                 { <$profile as Profile>::MAP.keyframes },

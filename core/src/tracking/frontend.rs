@@ -1,166 +1,95 @@
-//! The front end's state, grouped by the concern that owns it, and its constructors: the rest of
-//! `tracking` implements its behaviour (`pipeline.rs` the per-frame pipeline, `landmark_matching.rs`,
-//! `keyframe.rs`, `map_reuse.rs`).
-
-use heapless::Vec;
+//! [`Frontend`]: the front end as callers see it. It checks a frame's size, brings the frame to
+//! the pyramid level it tracks on ([`crate::config::tracking_level`]: the level nearest the
+//! width its pixel parameters are stated for), and hands it to the `FrameTracker` there.
+//!
+//! On the tracking level the gray image is the frame's halved with the core's downsampling, the
+//! depth the frame's own read for the halved image (finer than it: no depth is lost), and the
+//! camera the frame's halved. Everything two-dimensional then happens on that level (templates,
+//! searches, features, observations), so a VGA frame is tracked with the templates and windows
+//! of the reference resolution; the frame's full-resolution depth is read at the tracked points.
 
 use super::FrontendParams;
-use super::keyframe_rule::KeyframeRule;
 use super::local_map::BoardLocalMap;
-use super::result::{
-    FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
-    size_mismatch,
-};
-use crate::config::capacity;
-use crate::features::{FeatureVec, HessianDetector};
+use super::result::{FrameResult, FrontendError, FrontendState, FrontendStats, size_mismatch};
+use super::tracker::FrameTracker;
+use crate::config::{tracking_buffer_pixels, tracking_level};
 use crate::frame::RgbdFrame;
-use crate::geometry::{PinholeCamera, Pose};
-use crate::grid_spread::Candidate;
+use crate::geometry::PinholeCamera;
+use crate::image::{GrayView, GrayViewMut, downsample_gray_2x};
 use crate::map::Map;
-use crate::pose::small_image_rotation::SmallImage;
-use crate::pose::{Correspondence, MAX_CORRESPONDENCES, MotionModel, TrackingRng};
 
-/// The front end at the reference board's QVGA profile (320 x 240).
+/// The front end at the reference board's QVGA profile (320 x 240): it tracks on the frame.
 pub type QvgaFrontend = Frontend<320, 240>;
-/// The front end at the VGA profile (640 x 480).
-pub type VgaFrontend = Frontend<640, 480>;
+/// The front end at the VGA profile (640 x 480): it tracks on the frame halved (76,800 bytes).
+pub type VgaFrontend = Frontend<640, 480, { tracking_buffer_pixels(640, 480) }>;
 
-/// The front end for images up to `W` x `H` (see the module documentation). Its state is
-/// grouped by the concern that owns it: the recent past (`Recent`, here), the keyframe rule
-/// and the detector (`keyframe.rs`), the matching scratch (`landmark_matching.rs`) and the local
-/// map (`local_map.rs`).
+/// The front end for frames up to `W` x `H` pixels, with room for `C` pixels of a frame halved
+/// to its tracking level (0: it tracks on the frame itself; see the module documentation).
 #[derive(Debug, Clone)]
-pub struct Frontend<const W: usize, const H: usize> {
-    pub(super) params: FrontendParams,
-    pub(super) recent: Recent,
-    pub(super) keyframing: KeyframeRule,
-    pub(super) detection: Detection<W>,
-    pub(super) local: BoardLocalMap,
-    pub(super) scratch: MatchScratch,
-    pub(super) rng: TrackingRng,
-    pub(super) stats: FrontendStats,
-    /// Frames processed, as a frame number for the local map's bookkeeping.
-    pub(super) frame_index: u32,
-    /// The costly steps run on the frame being processed.
-    pub(super) work: FrontendWork,
+pub struct Frontend<const W: usize, const H: usize, const C: usize = 0> {
+    /// The current frame halved, when the front end tracks on level 1.
+    halved: [u8; C],
+    tracker: FrameTracker<W, H>,
 }
 
-/// What the front end keeps of the frames before this one.
-#[derive(Debug, Clone)]
-pub(super) struct Recent {
-    /// The state after the last frame.
-    pub(super) state: FrontendState,
-    /// The last frame's timestamp (seconds) and output `t_cw`.
-    pub(super) last: Option<(f64, Pose)>,
-    /// The last frame's pose inliers (0 when it was not tracked).
-    pub(super) inliers: usize,
-    /// Constant-velocity prediction from the tracked poses.
-    pub(super) motion: MotionModel,
-    /// This frame and the previous one as small blurry images (the rotation's re-estimate).
-    pub(super) small_current: SmallImage,
-    pub(super) small_previous: SmallImage,
-}
-
-impl Recent {
-    const fn new() -> Self {
-        Self {
-            state: FrontendState::Initializing,
-            last: None,
-            inliers: 0,
-            motion: MotionModel::new(),
-            small_current: SmallImage::new(),
-            small_previous: SmallImage::new(),
-        }
-    }
-
-    /// The last frame's output `t_cw`.
-    pub(super) fn last_t_cw(&self) -> Option<Pose> {
-        self.last.map(|(_, t_cw)| t_cw)
-    }
-
-    /// The predicted `t_cw`: constant velocity while tracking, else the last output pose, else
-    /// the identity.
-    pub(super) fn predict(&self, timestamp_s: f64) -> Pose {
-        if let Ok(Some(t_cw)) = self.motion.predict(timestamp_s) {
-            return t_cw;
-        }
-        self.last_t_cw().unwrap_or_else(Pose::identity)
-    }
-
-    /// Remembers the frame at `timestamp_s` as `result` left it; its small image becomes the
-    /// previous one.
-    pub(super) fn remember(&mut self, timestamp_s: f64, result: &FrameResult) {
-        self.state = result.state;
-        self.last = Some((timestamp_s, result.t_wc.inverse()));
-        self.inliers = result.inliers;
-        core::mem::swap(&mut self.small_current, &mut self.small_previous);
-    }
-}
-
-impl<const W: usize, const H: usize> Default for Frontend<W, H> {
+impl<const W: usize, const H: usize, const C: usize> Default for Frontend<W, H, C> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const W: usize, const H: usize> Frontend<W, H> {
+impl<const W: usize, const H: usize, const C: usize> Frontend<W, H, C> {
     /// A front end with [`FrontendParams::DEFAULT`] (`const`, so it can initialize a `static`).
     pub const fn new() -> Self {
         Self::with_params(FrontendParams::DEFAULT)
     }
 
-    /// A front end with `params` (checked on every [`Self::process`]).
+    /// A front end with `params` (checked on every [`Self::process`]), their pixel values stated
+    /// for [`REFERENCE_WIDTH_PX`](crate::config::REFERENCE_WIDTH_PX) and scaled to the tracking
+    /// level's width.
     pub const fn with_params(params: FrontendParams) -> Self {
-        Self {
-            params,
-            recent: Recent::new(),
-            keyframing: KeyframeRule::new(),
-            detection: Detection::new(),
-            local: BoardLocalMap::new(),
-            scratch: MatchScratch::new(),
-            rng: TrackingRng::new(params.rng_seed),
-            stats: FrontendStats {
-                frames: 0,
-                tracked_frames: 0,
-                lost_frames: 0,
-                reinitializations: 0,
-                initializing_frames: 0,
-                keyframes: 0,
-                keyframes_put_off: 0,
-                bank_recoveries: 0,
-            },
-            frame_index: 0,
-            work: FrontendWork {
-                final_stages: 0,
-                guide_runs: 0,
-                rotation_estimated: false,
-                detected: false,
-            },
-        }
+        Self { halved: [0; C], tracker: FrameTracker::with_params(params) }
     }
 
-    /// The parameters in use.
+    /// The parameters as given.
     pub fn params(&self) -> &FrontendParams {
-        &self.params
+        self.tracker.stated_params()
     }
 
     /// The state after the last frame.
     pub fn state(&self) -> FrontendState {
-        self.recent.state
+        self.tracker.state()
     }
 
     /// Running totals.
     pub fn stats(&self) -> FrontendStats {
-        self.stats
+        self.tracker.stats()
     }
 
     /// The landmarks tracked now.
     pub fn local_map(&self) -> &BoardLocalMap {
-        &self.local
+        self.tracker.local_map()
     }
 
-    /// Processes one frame (see the module documentation) against `map`, which it extends with
-    /// keyframes and landmarks. `cam` must describe the frame's size.
+    /// The pyramid level frames `width` x `height` are tracked on: [`tracking_level`], when the
+    /// halved frame fits in `C` and the size halves exactly; else 0.
+    pub const fn level_for(width: usize, height: usize) -> u8 {
+        let halves =
+            width.is_multiple_of(2) && height.is_multiple_of(2) && (width / 2) * (height / 2) <= C;
+        if tracking_level(width) == 1 && halves { 1 } else { 0 }
+    }
+
+    /// The camera of the tracking level for frames seen by `cam`: the one the map's observations
+    /// are in (bundle adjustment needs it). `cam` itself on level 0.
+    pub fn tracking_camera(cam: &PinholeCamera) -> PinholeCamera {
+        match Self::level_for(cam.width(), cam.height()) {
+            0 => *cam,
+            _ => cam.downscaled_2x().unwrap_or(*cam),
+        }
+    }
+
+    /// Processes one frame (see the module documentation of [`crate::tracking`]) against `map`,
+    /// which it extends with keyframes and landmarks. `cam` must describe the frame's size.
     ///
     /// # Errors
     /// [`FrontendError::SizeMismatch`], [`FrontendError::TimestampNotIncreasing`] or
@@ -173,42 +102,6 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
     ) -> Result<FrameResult, FrontendError> {
-        self.check_input(frame, cam)?;
-        let predicted_t_cw = self.recent.predict(frame.timestamp_s);
-        self.stats.frames = self.stats.frames.saturating_add(1);
-        self.frame_index = self.frame_index.wrapping_add(1);
-        self.work = FrontendWork::default();
-        self.recent.small_current.build(&frame.gray);
-        // Ids of a map the caller cleared or replaced no longer resolve: start over then.
-        if self.keyframing.reference.is_some_and(|(id, _)| map.keyframe(id).is_none()) {
-            self.local.clear();
-            self.keyframing.reference = None;
-        }
-        let result = if self.local.is_empty() || self.keyframing.reference.is_none() {
-            self.initialize(frame, cam, map, &predicted_t_cw)
-        } else {
-            self.track_or_recover(frame, cam, map, &predicted_t_cw)
-        };
-        let s = &mut self.stats;
-        let count = match result.outcome() {
-            FrameOutcome::Tracked => &mut s.tracked_frames,
-            FrameOutcome::Reinitialized => &mut s.reinitializations,
-            FrameOutcome::Lost => &mut s.lost_frames,
-            FrameOutcome::Initializing => &mut s.initializing_frames,
-        };
-        *count = count.saturating_add(1);
-        self.recent.remember(frame.timestamp_s, &result);
-        let keyframe_landmarks =
-            if result.keyframe.is_some() { self.keyframing.last_counts } else { (0, 0, 0) };
-        Ok(FrameResult {
-            tracked_landmarks: self.local.len(),
-            keyframe_landmarks,
-            work: self.work,
-            ..result
-        })
-    }
-
-    fn check_input(&self, frame: &RgbdFrame<'_>, cam: &PinholeCamera) -> Result<(), FrontendError> {
         let (width, height) = frame.gray.size();
         let fits = width <= W && height <= H;
         if !fits
@@ -217,47 +110,20 @@ impl<const W: usize, const H: usize> Frontend<W, H> {
         {
             return Err(size_mismatch::<W, H>(frame, cam));
         }
-        if !self.params.is_valid() {
-            return Err(FrontendError::InvalidParams);
+        if Self::level_for(width, height) == 0 {
+            return self.tracker.process(frame, cam, map);
         }
-        let previous_s = self.recent.last.map_or(f64::NEG_INFINITY, |(t, _)| t);
-        if !frame.timestamp_s.is_finite() || frame.timestamp_s <= previous_s {
-            return Err(FrontendError::TimestampNotIncreasing {
-                previous_s,
-                current_s: frame.timestamp_s,
-            });
-        }
-        Ok(())
-    }
-}
-
-/// The detector and the features it found in the last keyframe's frame.
-#[derive(Debug, Clone)]
-pub(super) struct Detection<const W: usize> {
-    pub(super) detector: HessianDetector<W>,
-    /// The last detection's features (map reuse reads them too).
-    pub(super) features: FeatureVec,
-}
-
-impl<const W: usize> Detection<W> {
-    pub(super) const fn new() -> Self {
-        Self { detector: HessianDetector::new(), features: FeatureVec::new() }
-    }
-}
-
-/// The matching stages' scratch: the landmarks tried (`candidates`), and the correspondences
-/// found with the local-map index of each (`sources`). After [`Frontend::match_landmarks`] it
-/// holds the winning final stage, which the keyframe and the local map's bookkeeping read.
-#[derive(Debug, Clone)]
-pub(super) struct MatchScratch {
-    pub(super) candidates: Vec<Candidate, { capacity::MAX_TRACKED_LANDMARKS }>,
-    pub(super) correspondences: Vec<Correspondence, MAX_CORRESPONDENCES>,
-    /// Local-map index of each correspondence.
-    pub(super) sources: Vec<u16, MAX_CORRESPONDENCES>,
-}
-
-impl MatchScratch {
-    pub(super) const fn new() -> Self {
-        Self { candidates: Vec::new(), correspondences: Vec::new(), sources: Vec::new() }
+        // `level_for` checked that the halved frame fits and halves exactly: none of these fail.
+        let mismatch = || size_mismatch::<W, H>(frame, cam);
+        let (w, h) = (width / 2, height / 2);
+        let buffer = self.halved.get_mut(..w * h).ok_or_else(mismatch)?;
+        let mut halved = GrayViewMut::packed(buffer, w, h).map_err(|_| mismatch())?;
+        downsample_gray_2x(&frame.gray, &mut halved).map_err(|_| mismatch())?;
+        let buffer = self.halved.get(..w * h).ok_or_else(mismatch)?;
+        let gray = GrayView::packed(buffer, w, h).map_err(|_| mismatch())?;
+        let depth = frame.depth.for_coarser_image(1).ok_or_else(mismatch)?;
+        let level_cam = cam.downscaled_2x().map_err(|_| mismatch())?;
+        let level = RgbdFrame { timestamp_s: frame.timestamp_s, gray, depth };
+        self.tracker.process(&level, &level_cam, map)
     }
 }

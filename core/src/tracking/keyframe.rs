@@ -4,9 +4,9 @@
 use heapless::Vec;
 use nalgebra::Point2;
 
-use super::frontend::Frontend;
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
 use super::map_reuse::{FEATURE_WORDS, FeatureSet, contains};
+use super::tracker::FrameTracker;
 use crate::config::capacity;
 use crate::features::{Descriptor, Feature, HessianParams};
 use crate::frame::RgbdFrame;
@@ -23,7 +23,7 @@ const NEW_LANDMARK_RESERVE: usize = MAX_OBSERVATIONS_PER_KEYFRAME / 2;
 /// Features closer than this to the border make no landmark: the template must fit.
 const BORDER_PX: f32 = (PATCH_SIDE / 2) as f32 + 0.5;
 
-impl<const W: usize, const H: usize> Frontend<W, H> {
+impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Makes a keyframe of `frame` at `t_cw`: the inliers of the last pose (`inliers` over the
     /// current correspondences; `None` when starting tracking) become its observations, templates
     /// warped beyond `reanchor_max_warp` are re-taken from it, and features with valid depth that

@@ -4,7 +4,7 @@
 use nalgebra::Point2;
 
 use super::GuideStage;
-use super::frontend::Frontend;
+use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::grid_spread::{Candidate, Grid, spread};
@@ -102,7 +102,7 @@ impl Matcher<'_> {
     }
 }
 
-impl<const W: usize, const H: usize> Frontend<W, H> {
+impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Matches the local map into `frame` and estimates the pose: each attempt of the module
     /// documentation gives a start pose for the final stage, in order of cost, until a final
     /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers, or

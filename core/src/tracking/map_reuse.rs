@@ -20,8 +20,8 @@
 
 use heapless::Vec;
 
-use super::frontend::Frontend;
 use super::local_map::TrackedLandmark;
+use super::tracker::FrameTracker;
 use crate::config::capacity;
 use crate::features::Descriptor;
 use crate::frame::RgbdFrame;
@@ -57,7 +57,7 @@ fn insert(set: &mut [u32], i: usize) {
     }
 }
 
-impl<const W: usize, const H: usize> Frontend<W, H> {
+impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Re-acquires map landmarks the local map does not hold among `self.detection.features` (detected in
     /// `frame`, the new keyframe `kf` at `t_cw`); marks the features used in `used`; returns how
     /// many landmarks were re-acquired.

@@ -82,6 +82,7 @@ mod map_reuse;
 mod params;
 mod pipeline;
 mod result;
+mod tracker;
 
 pub use frontend::{Frontend, QvgaFrontend, VgaFrontend};
 pub use local_map::{

@@ -5,8 +5,10 @@ use crate::features::HessianParams;
 use crate::matching::{MatchParams, TrackParams};
 use crate::pose::PoseParams;
 
-/// Tunables of [`Frontend`](super::frontend::Frontend). Distances in pixels are at the processing
-/// resolution (QVGA on the board).
+/// Tunables of [`Frontend`](super::frontend::Frontend). Distances in pixels are stated for
+/// [`REFERENCE_WIDTH_PX`](crate::config::REFERENCE_WIDTH_PX) (the board's QVGA); the front end
+/// tracks on the pyramid level nearest it and scales them to that level's width
+/// ([`Self::at_pixel_scale`]), so they mean the same at any resolution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrontendParams {
     /// Feature detection for new keyframes. Default: [`HessianParams::default`] with the
@@ -153,6 +155,39 @@ impl FrontendParams {
     /// estimator weighs with it).
     pub const fn with_sensor(self, sensor: SensorModel) -> Self {
         Self { pose: PoseParams { sensor, ..self.pose }, ..self }
+    }
+
+    /// These parameters with their pixel values (search radii and steps, refinement shifts,
+    /// distances between new landmarks), stated for
+    /// [`REFERENCE_WIDTH_PX`](crate::config::REFERENCE_WIDTH_PX), scaled by `scale` (a tracking
+    /// level's width over it; see [`pixel_scale`](crate::config::pixel_scale)), so that they mean
+    /// the same share of the image at any resolution. Template sizes stay: the local map keeps
+    /// templates of a fixed size. `scale` 1 gives the parameters unchanged.
+    pub fn at_pixel_scale(self, scale: f32) -> Self {
+        if scale == 1.0 || !(scale.is_finite() && scale > 0.0) {
+            return self;
+        }
+        // Rounded to whole pixels, at least 1 where the stated value is.
+        let px =
+            |n: usize| if n == 0 { 0 } else { libm::roundf(n as f32 * scale).max(1.0) as usize };
+        let track = |t: TrackParams| TrackParams {
+            search_radius: px(t.search_radius),
+            search_step: px(t.search_step),
+            max_refine_shift_px: t.max_refine_shift_px * scale,
+            ..t
+        };
+        Self {
+            guide: track(self.guide),
+            guide_wide: track(self.guide_wide),
+            track: track(self.track),
+            matching: MatchParams {
+                search_radius: px(self.matching.search_radius),
+                max_refine_shift_px: self.matching.max_refine_shift_px * scale,
+                ..self.matching
+            },
+            new_landmark_min_distance_px: self.new_landmark_min_distance_px * scale,
+            ..self
+        }
     }
 
     /// The sensor's measurement model in use (the pose estimator's).

@@ -1,14 +1,14 @@
 //! The per-frame pipeline of the module documentation after the input checks and the prediction
 //! of [`Frontend::process`]: tracking the local map, or starting (again) from a keyframe.
 
-use super::frontend::Frontend;
 use super::keyframe_rule::KeyframeDecision;
 use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
+use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::Map;
 
-impl<const W: usize, const H: usize> Frontend<W, H> {
+impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Starts (or restarts) tracking from a keyframe made of `frame` at `t_cw`.
     pub(super) fn initialize<const K: usize, const L: usize>(
         &mut self,

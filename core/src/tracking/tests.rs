@@ -359,3 +359,25 @@ fn without_costly_frames_putting_off_changes_nothing() {
     assert!(stats.keyframes >= 2, "the motion makes keyframes ({})", stats.keyframes);
     assert_eq!(with_rule, without);
 }
+
+/// The front end tracks a VGA frame on its halved level with the QVGA parameters, and a frame
+/// whose width is nearer the reference than its half on the frame itself with scaled ones.
+#[test]
+fn the_tracking_level_and_camera_follow_the_frame_width() {
+    type Vga = crate::tracking::VgaFrontend;
+    assert_eq!(
+        [(320, 240), (424, 240), (512, 384), (640, 480)].map(|(w, h)| Vga::level_for(w, h)),
+        [0, 0, 1, 1]
+    );
+    assert_eq!(QvgaFrontend::level_for(640, 480), 0, "no room for the halved frame");
+    let cam = PinholeCamera::new(525.0, 525.0, 319.5, 239.5, 640, 480).unwrap();
+    let level = Vga::tracking_camera(&cam);
+    assert_eq!((level.width(), level.height(), level.fx()), (320, 240, 262.5));
+    assert_eq!(QvgaFrontend::tracking_camera(&camera()), camera());
+    let p = FrontendParams::DEFAULT;
+    assert_eq!(p.at_pixel_scale(1.0), p);
+    let q = p.at_pixel_scale(1.325);
+    assert_eq!((q.guide.search_radius, q.guide_wide.search_radius), (4, 21));
+    assert_eq!(q.guide_wide.search_step, 3);
+    assert!(q.guide.is_valid() && q.guide_wide.is_valid() && q.track.is_valid() && q.is_valid());
+}

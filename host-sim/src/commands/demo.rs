@@ -21,7 +21,12 @@ pub struct DemoArgs {
     /// Frames to render (30 per second of path).
     #[arg(long, default_value_t = SynthOptions::default().frames)]
     pub frames: usize,
-    /// Processing resolution (frames are rendered at 640x480 like the sensor's).
+    /// The sensor's size the frames are rendered at, `WIDTHxHEIGHT` (even numbers; the focal
+    /// length follows the width: 525 px at 640): e.g. `848x480` for a RealSense-class sensor,
+    /// which `--profile qvga` processes at 424x240.
+    #[arg(long, default_value = "640x480", value_parser = parse_size)]
+    pub size: (usize, usize),
+    /// Processing resolution: the sensor's frames halved once (`qvga`) or not (`vga`).
     #[arg(long, value_enum, default_value = "qvga")]
     pub profile: ProfileArg,
     /// Depth noise: sigma = K * z^2 metres (Kinect v1 is about 0.0015). The core is told it
@@ -88,6 +93,9 @@ impl DemoArgs {
     /// written dataset).
     fn synth_flags(&self) -> String {
         let mut flags = format!("--frames {} --seed {}", self.frames, self.seed);
+        if self.size != (640, 480) {
+            flags.push_str(&format!(" --size {}x{}", self.size.0, self.size.1));
+        }
         for (name, value, default) in [
             ("--depth-noise", self.depth_noise, 0.0),
             ("--holes", self.holes, 0.0),
@@ -117,6 +125,8 @@ impl DemoArgs {
             shake: self.shake,
             fast_rotation: self.fast_rotation,
             seed: self.seed,
+            width: self.size.0,
+            height: self.size.1,
             ..SynthOptions::default()
         };
         DemoOptions {
@@ -164,4 +174,19 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     }
     println!("  wrote {}", out.display());
     Ok(())
+}
+
+/// The parser of `--size`: `WIDTHxHEIGHT`, both even and at least 16.
+fn parse_size(text: &str) -> Result<(usize, usize), String> {
+    let bad =
+        || format!("`{text}` is not a size WIDTHxHEIGHT of even numbers of pixels, e.g. 848x480");
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    let (w, h) = (
+        w.trim().parse::<usize>().map_err(|_| bad())?,
+        h.trim().parse::<usize>().map_err(|_| bad())?,
+    );
+    if w < 16 || h < 16 || w % 2 != 0 || h % 2 != 0 {
+        return Err(bad());
+    }
+    Ok((w, h))
 }

@@ -23,7 +23,9 @@ pub mod source;
 
 use anyhow::Result;
 use ferroslam_core::backend::BackendParams;
-use ferroslam_core::config::{HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga};
+use ferroslam_core::config::{
+    HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga, tracking_buffer_pixels,
+};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::SLAM_FRONTEND;
@@ -133,14 +135,17 @@ where
     if let TrackMode::Slam { window_levels, .. } = options.mode {
         backend.window_levels = window_levels;
     }
-    let vga = options.profile.downsample_levels == 0;
+    // The smallest profile whose front end holds the processing frame.
+    let vga = cam.width() > QVGA.max_width() || cam.height() > QVGA.max_height();
     let progress = Progress { expected_frames: expected, bar: options.progress_bar };
     match (options.mode, vga) {
         (TrackMode::Odometry, true) => {
-            odometry::run::<640, 480, S>(source, progress, cam, odometry)
+            odometry::run::<640, 480, { tracking_buffer_pixels(640, 480) }, S>(
+                source, progress, cam, odometry,
+            )
         }
         (TrackMode::Odometry, false) => {
-            odometry::run::<320, 240, S>(source, progress, cam, odometry)
+            odometry::run::<320, 240, 0, S>(source, progress, cam, odometry)
         }
         (TrackMode::Slam { quota, schedule, map, .. }, vga) => {
             let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };

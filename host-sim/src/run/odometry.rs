@@ -11,11 +11,11 @@ use super::data_path::{Progress, drive};
 use super::result::{TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
-/// Runs `source` through a boxed `Frontend<W, H>` with `params` and the board's map.
+/// Runs `source` through a boxed `Frontend<W, H, C>` with `params` and the board's map.
 ///
 /// # Errors
 /// As [`drive`]; a frame the front end rejects (size or timestamp).
-pub(super) fn run<const W: usize, const H: usize, S>(
+pub(super) fn run<const W: usize, const H: usize, const C: usize, S>(
     source: &mut S,
     progress: Progress,
     cam: &PinholeCamera,
@@ -26,7 +26,7 @@ where
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     // Hundreds of KB each: boxed, never kept on the stack.
-    let mut frontend: Box<Frontend<W, H>> = Box::new(Frontend::with_params(params));
+    let mut frontend: Box<Frontend<W, H, C>> = Box::new(Frontend::with_params(params));
     let mut map: Box<BoardMap> = Box::default();
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = drive(source, progress, |frame| {
@@ -55,7 +55,7 @@ where
         lost_frames: stats.lost_frames as usize,
         reinitialized_frames: stats.reinitializations as usize,
         initializing_frames: stats.initializing_frames as usize,
-        state_bytes: std::mem::size_of::<Frontend<W, H>>() + std::mem::size_of::<BoardMap>(),
+        state_bytes: std::mem::size_of::<Frontend<W, H, C>>() + std::mem::size_of::<BoardMap>(),
         backend: None,
     })
 }
