@@ -60,6 +60,8 @@ pub struct Measurements {
     pub run: FirmwareRun,
     /// Where its `cost.json` is.
     pub cost_json: PathBuf,
+    /// Other recordings' runs of the same build, by the name keying their figures.
+    pub also: Vec<(String, FirmwareRun)>,
     /// Both firmware binaries, in [`firmware::BINARIES`] order.
     pub binaries: Vec<Binary>,
     /// The core structures' `size_of` on this host.

@@ -63,14 +63,31 @@ fn wrap(text: &str) -> String {
 
 /// The dataset's folder name.
 fn dataset_name(m: &Measurements) -> String {
-    Path::new(&m.run.dataset)
+    folder_name(&m.run.dataset)
+}
+
+/// The last component of the path `dataset`.
+fn folder_name(dataset: &str) -> String {
+    Path::new(dataset)
         .file_name()
-        .map_or_else(|| m.run.dataset.clone(), |n| n.to_string_lossy().into_owned())
+        .map_or_else(|| dataset.to_owned(), |n| n.to_string_lossy().into_owned())
 }
 
 fn checks_table(m: &Measurements, checks: &[Check]) -> String {
+    let also: String = m
+        .also
+        .iter()
+        .map(|(name, run)| {
+            format!(
+                "; `{name}.*` over {} frames of {} ({} keyframes)",
+                run.frames.len(),
+                folder_name(&run.dataset),
+                run.keyframe_count()
+            )
+        })
+        .collect();
     let mut s = wrap(&format!(
-        "Measured by `cargo xtask budgets` over {} frames of {} ({} keyframes):",
+        "Measured by `cargo xtask budgets`: `qvga.*` over {} frames of {} ({} keyframes){also}:",
         m.run.frames.len(),
         dataset_name(m),
         m.run.keyframe_count()
@@ -279,6 +296,7 @@ mod tests {
                 ],
             },
             cost_json: "cost.json".into(),
+            also: Vec::new(),
             binaries: Vec::new(),
             structures: Vec::new(),
             figures: Vec::new(),

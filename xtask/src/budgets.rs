@@ -2,8 +2,8 @@
 //! the budgets of `memory-budget.md`.
 //!
 //! ```text
-//! cargo xtask budgets [--from DIR | --dataset DIR --frames N --out DIR] [--json FILE] [--write]
-//!                     [--strict]
+//! cargo xtask budgets [--from DIR | --dataset DIR --frames N --out DIR] [--also NAME=DIR]...
+//!                     [--json FILE] [--write] [--strict]
 //! ```
 //!
 //! What it measures (profile QVGA, the reference board):
@@ -17,14 +17,20 @@
 //! - **Instructions per frame** on QEMU's Cortex-M4F (`-icount shift=0`: SysTick ticks x 40),
 //!   median, p99 (nearest rank) and max over the replayed frames, for the front end, the back-end
 //!   step (one fixed quota) and their sum, the pipeline, which the bars are about. Acquiring the
-//!   frame (semihosting reads and the halving to QVGA) and the report are listed apart.
+//!   frame (semihosting reads and the halving to QVGA) and the report are listed apart. A run
+//!   needs [`MIN_FRAMES`] frames; p99 is given from [`P99_MIN_FRAMES`] on (below, it would be the
+//!   max).
 //! - The `size_of` of the core's structures on the host (`ferroslam_tests::structures`).
 //!
 //! Where the run comes from: `--from DIR` reads `DIR/cost.json` of a `firmware-replay` run (how
 //! `cargo xtask ci` runs QEMU once for both checks; the ELF must be the one that ran, checked by
 //! its hash); otherwise it runs `firmware-replay` itself on `--frames` (default 1000, at least
-//! 200) frames of `--dataset` (default 7-Scenes) into `--out` (default `target/xtask/budgets`),
-//! bit-identical check included.
+//! [`MIN_FRAMES`]) frames of `--dataset` (default 7-Scenes) into `--out` (default
+//! `target/xtask/budgets`), bit-identical check included, and the same on the second recording,
+//! [`fast_demo`](crate::fast_demo) (into `<out>-fast-demo`). `--also NAME=DIR` (repeatable) adds the
+//! `firmware-replay` run in `DIR` of another recording, from the same build: its instructions per
+//! frame and RAM are figures `NAME.insn_per_frame_median`, ..., `NAME.ram_total_bytes`, so the
+//! bars can be held on more than one recording (CI: 7-Scenes and the shake + fast-rotation demo).
 //!
 //! How it judges: every budget of the block in `memory-budget.md` has the issue's `bar` and,
 //! where the bar is not met today, a `ceiling` (a regression guard a few percent above the figure
@@ -50,8 +56,12 @@ use crate::firmware::{self, BINARIES};
 use crate::paths::{SEVEN_SCENES, calibration_for, root};
 use crate::replay::{self, ReplayOptions};
 
-/// Frames a run must have for the per-frame figures (the issue's minimum).
-pub const MIN_FRAMES: usize = 200;
+/// Frames a run must have for the per-frame figures: enough for a median and a max that say
+/// something (a second of camera time at 30 Hz).
+pub const MIN_FRAMES: usize = 30;
+
+/// Frames from which p99 is a figure: below, the nearest rank of p99 is the max.
+pub const P99_MIN_FRAMES: usize = 100;
 
 /// Frames replayed when no `--from` run is given (all of 7-Scenes, as CI).
 const DEFAULT_FRAMES: usize = 1000;
@@ -67,6 +77,8 @@ pub struct Options {
     pub frames: usize,
     /// Where the replay writes (without `from`).
     pub out: PathBuf,
+    /// Other recordings' `firmware-replay` folders, by the name their figures take.
+    pub also: Vec<(String, PathBuf)>,
     /// Where to write the JSON report.
     pub json: Option<PathBuf>,
     /// Regenerate the figures of `memory-budget.md`.
@@ -83,6 +95,7 @@ impl Options {
             dataset: root.join(SEVEN_SCENES),
             frames: DEFAULT_FRAMES,
             out: root.join("target").join("xtask").join("budgets"),
+            also: Vec::new(),
             json: None,
             write: false,
             strict: false,
@@ -106,6 +119,19 @@ impl Options {
                     o.frames = v.parse().with_context(|| format!("--frames {v}"))?;
                 }
                 "--out" => o.out = value()?.into(),
+                "--also" => {
+                    let v = value()?;
+                    let (name, dir) = v
+                        .split_once('=')
+                        .filter(|(n, d)| is_run_name(n) && !d.is_empty())
+                        .ok_or_else(|| {
+                            anyhow!("--also {v}: expected NAME=DIR, NAME of a-z, 0-9 and _")
+                        })?;
+                    if name == "qvga" || name == "vga" || o.also.iter().any(|(n, _)| n == name) {
+                        bail!("--also {v}: the name {name} is taken");
+                    }
+                    o.also.push((name.to_owned(), dir.into()));
+                }
                 "--json" => o.json = Some(value()?.into()),
                 "--write" => o.write = true,
                 "--strict" => o.strict = true,
@@ -117,6 +143,12 @@ impl Options {
         }
         Ok(o)
     }
+}
+
+/// Whether `name` can key figures: lower-case letters, digits and `_`, a letter first.
+fn is_run_name(name: &str) -> bool {
+    name.starts_with(|c: char| c.is_ascii_lowercase())
+        && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
 }
 
 /// Runs `budgets` with the command line `args`.
@@ -135,6 +167,8 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
             dir.clone()
         }
         None => {
+            let fast_demo = fast_demo_out(&opts.out);
+            crate::fast_demo::write_and_replay(root, &fast_demo)?;
             let replay = ReplayOptions {
                 dataset: opts.dataset.clone(),
                 calibration: calibration_for(&opts.dataset),
@@ -146,35 +180,57 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
             opts.out.clone()
         }
     };
-    let cost_json = dir.join("cost.json");
-    let run = FirmwareRun::read(&cost_json)?;
     let elf = firmware::elf_path(root, "qemu-mps2");
     let bytes = fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
-    if format!("{:016x}", fnv1a64(&bytes)) != run.elf_fnv1a64 {
-        bail!(
-            "{} is from another build of qemu-mps2 than {}: run firmware-replay again (or budgets \
-             without --from)",
-            cost_json.display(),
-            elf.display()
-        );
+    let elf_hash = format!("{:016x}", fnv1a64(&bytes));
+    let read_run = |dir: &Path| -> Result<FirmwareRun> {
+        let cost_json = dir.join("cost.json");
+        let run = FirmwareRun::read(&cost_json)?;
+        if run.elf_fnv1a64 != elf_hash {
+            bail!(
+                "{} is from another build of qemu-mps2 than {}: run firmware-replay again (or \
+                 budgets without --from)",
+                cost_json.display(),
+                elf.display()
+            );
+        }
+        if run.frames.len() < MIN_FRAMES {
+            bail!(
+                "{}: {} frames, the budgets need at least {MIN_FRAMES}",
+                cost_json.display(),
+                run.frames.len()
+            );
+        }
+        Ok(run)
+    };
+    let cost_json = dir.join("cost.json");
+    let run = read_run(&dir)?;
+    let mut also_dirs = opts.also.clone();
+    if opts.from.is_none() {
+        also_dirs.push((crate::fast_demo::NAME.to_owned(), fast_demo_out(&opts.out)));
     }
-    if run.frames.len() < MIN_FRAMES {
-        bail!(
-            "{}: {} frames, the budgets need at least {MIN_FRAMES}",
-            cost_json.display(),
-            run.frames.len()
-        );
-    }
+    let also = also_dirs
+        .iter()
+        .map(|(name, dir)| Ok((name.clone(), read_run(dir)?)))
+        .collect::<Result<Vec<_>>>()?;
     let binaries = BINARIES.iter().map(|b| Binary::read(root, b)).collect::<Result<Vec<_>>>()?;
     let mut m = Measurements {
         run,
         cost_json,
+        also,
         binaries,
         structures: ferroslam_tests::structures::core_structures(),
         figures: Vec::new(),
     };
     m.figures = figures(&m);
     Ok(m)
+}
+
+/// Where `budgets` without `--from` replays the second recording: `<out>-fast-demo`.
+fn fast_demo_out(out: &Path) -> PathBuf {
+    let mut name = out.file_name().unwrap_or_default().to_os_string();
+    name.push("-fast-demo");
+    out.with_file_name(name)
 }
 
 /// Every figure of both profiles, by JSON key.
@@ -198,17 +254,14 @@ fn figures(m: &Measurements) -> Vec<(String, Option<u64>)> {
         ("frames", Some(m.run.frames.len() as u64)),
         ("keyframes", Some(m.run.keyframe_count() as u64)),
     ];
-    let mut insn = Vec::new();
-    for (stage, prefix) in [
-        ("pipeline", "insn_per_frame"),
-        ("frontend", "frontend_insn_per_frame"),
-        ("backend_step", "backend_step_insn_per_frame"),
-        ("acquire", "acquire_insn_per_frame"),
-    ] {
-        let s = m.run.stats(stage);
-        for (name, v) in [("median", s.median), ("p99", s.p99), ("max", s.max)] {
-            insn.push((format!("qvga.{prefix}_{name}"), Some(v)));
-        }
+    let mut insn = per_frame_figures("qvga", &m.run);
+    for (name, run) in &m.also {
+        insn.extend(per_frame_figures(name, run));
+        let stack = u64::from(run.status.stack_peak_bytes);
+        insn.push((format!("{name}.stack_peak_bytes"), Some(stack)));
+        insn.push((format!("{name}.ram_total_bytes"), static_ram.map(|r| r + stack)));
+        insn.push((format!("{name}.frames"), Some(run.frames.len() as u64)));
+        insn.push((format!("{name}.keyframes"), Some(run.keyframe_count() as u64)));
     }
     let vga_known = [
         (
@@ -242,10 +295,44 @@ fn figures(m: &Measurements) -> Vec<(String, Option<u64>)> {
         .collect()
 }
 
-/// Pairs every budget with its figure.
-fn check(budgets: &[Budget], m: &Measurements) -> Result<Vec<Check>> {
+/// The instructions per frame of `run`'s stages, keyed `{name}.{stage figure}_{statistic}`; p99
+/// is `None` below [`P99_MIN_FRAMES`] frames.
+fn per_frame_figures(name: &str, run: &FirmwareRun) -> Vec<(String, Option<u64>)> {
+    let mut out = Vec::new();
+    let p99_says_something = run.frames.len() >= P99_MIN_FRAMES;
+    for (stage, prefix) in [
+        ("pipeline", "insn_per_frame"),
+        ("frontend", "frontend_insn_per_frame"),
+        ("backend_step", "backend_step_insn_per_frame"),
+        ("acquire", "acquire_insn_per_frame"),
+    ] {
+        let s = run.stats(stage);
+        let p99 = p99_says_something.then_some(s.p99);
+        for (statistic, v) in [("median", Some(s.median)), ("p99", p99), ("max", Some(s.max))] {
+            out.push((format!("{name}.{prefix}_{statistic}"), v));
+        }
+    }
+    out
+}
+
+/// The runs `budgets` name (the part of their keys before the first `.`) that `m` does not have.
+fn runs_not_given(budgets: &[Budget], m: &Measurements) -> Vec<String> {
+    let mut missing: Vec<String> = Vec::new();
+    for b in budgets {
+        let run = b.key.split_once('.').map_or("", |(run, _)| run);
+        let given = ["qvga", "vga"].contains(&run) || m.also.iter().any(|(n, _)| n == run);
+        if !given && !missing.iter().any(|r| r == run) {
+            missing.push(run.to_owned());
+        }
+    }
+    missing
+}
+
+/// Pairs every budget of a run `m` has with its figure.
+fn check(budgets: &[Budget], m: &Measurements, missing: &[String]) -> Result<Vec<Check>> {
     budgets
         .iter()
+        .filter(|b| !missing.iter().any(|r| b.key.split_once('.').is_some_and(|(k, _)| k == r)))
         .map(|b| {
             let measured = m.figure(&b.key).ok_or_else(|| {
                 anyhow!("memory-budget.md budgets `{}`, which is not a measured figure", b.key)
@@ -265,15 +352,32 @@ pub fn run_with(root: &Path, opts: &Options) -> Result<()> {
         fs::read_to_string(&doc_path).with_context(|| format!("reading {}", doc_path.display()))?;
     let budgets = budget_doc::parse_block(&doc)?;
     let m = measure(root, opts)?;
-    let checks = check(&budgets, &m)?;
+    let missing = runs_not_given(&budgets, &m);
+    if opts.write && !missing.is_empty() {
+        bail!(
+            "--write needs every run memory-budget.md budgets; not given: {}",
+            missing.join(", ")
+        );
+    }
+    let checks = check(&budgets, &m, &missing)?;
     print_report(&m, &checks, opts.strict);
+    for run in &missing {
+        println!(
+            "not checked: the budgets of `{run}.*` (give its firmware-replay folder with --also \
+             {run}=DIR; `budgets` without --from makes it)"
+        );
+    }
     if let Some(path) = &opts.json {
         let report = json_report(&m, &checks, opts.strict);
         fs::write(path, serde_json::to_string_pretty(&report)? + "\n")
             .with_context(|| format!("writing {}", path.display()))?;
         println!("JSON: {}", path.display());
     }
-    let rendered = crate::budget_tables::render(&doc, &m, &checks)?;
+    let rendered = if missing.is_empty() {
+        crate::budget_tables::render(&doc, &m, &checks)?
+    } else {
+        doc.clone()
+    };
     if opts.write {
         if rendered == doc {
             println!("memory-budget.md: already up to date");
@@ -484,8 +588,44 @@ mod tests {
         assert_eq!(o.frames, 300);
         let d = Options::parse(&[], root).unwrap();
         assert_eq!((d.frames, d.from, d.write, d.strict), (1000, None, false, false));
-        assert!(Options::parse(&["--frames".into(), "199".into()], root).is_err());
+        assert!(Options::parse(&["--frames".into(), "29".into()], root).is_err());
+        let also = |v: &str| Options::parse(&["--also".into(), v.into()], root);
+        assert_eq!(also("fast_demo=out/fd").unwrap().also, [("fast_demo".into(), "out/fd".into())]);
+        for bad in ["fast_demo", "=d", "Fast=d", "qvga=d", "a.b=d", "x="] {
+            assert!(also(bad).is_err(), "{bad}");
+        }
         assert!(Options::parse(&["--frames".into()], root).is_err());
         assert!(Options::parse(&["--bogus".into()], root).is_err());
+    }
+
+    /// p99 is a figure from [`P99_MIN_FRAMES`] frames on; median and max always.
+    #[test]
+    fn p99_needs_enough_frames() {
+        let run = |n: u64| crate::cost::FirmwareRun {
+            dataset: "data".into(),
+            elf: "fw.elf".into(),
+            elf_fnv1a64: String::new(),
+            status: ferroslam_core::wire::StatusMessage::default(),
+            frames: (0..n)
+                .map(|i| crate::cost::FrameCost {
+                    frame_index: i as u32,
+                    keyframe: false,
+                    work: None,
+                    acquire: 0,
+                    frontend: 1_000 * (i + 1),
+                    backend_step: 0,
+                    report: 0,
+                })
+                .collect(),
+        };
+        let get = |figures: &[(String, Option<u64>)], k: &str| {
+            figures.iter().find(|(key, _)| key == k).and_then(|(_, v)| *v)
+        };
+        let few = per_frame_figures("x", &run(MIN_FRAMES as u64));
+        assert_eq!(get(&few, "x.insn_per_frame_max"), Some(1_000 * MIN_FRAMES as u64));
+        assert!(get(&few, "x.insn_per_frame_median").is_some());
+        assert_eq!(get(&few, "x.insn_per_frame_p99"), None);
+        let many = per_frame_figures("x", &run(P99_MIN_FRAMES as u64));
+        assert_eq!(get(&many, "x.insn_per_frame_p99"), Some(99_000));
     }
 }

@@ -120,8 +120,8 @@ fn no_allocator_in(elf: &Path) -> Result<()> {
 /// at least 60).
 const FIRMWARE_REPLAY_FRAMES: usize = 1000;
 
-/// The firmware in QEMU on the first frames of 7-Scenes, every pose bit-identical to the host
-/// replay's (see `replay.rs`).
+/// The firmware in QEMU on the first frames of 7-Scenes and on the second recording of the
+/// budgets ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`).
 fn firmware_replay() -> Result<()> {
     let opts = crate::replay::ReplayOptions {
         dataset: root().join(SEVEN_SCENES),
@@ -130,7 +130,8 @@ fn firmware_replay() -> Result<()> {
         out: firmware_replay_dir(),
         qemu_args: Vec::new(),
     };
-    crate::replay::run(&root(), &opts)
+    crate::replay::run(&root(), &opts)?;
+    crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())
 }
 
 /// Where CI's firmware replay writes (`cost.json` among the rest), read again by [`budgets`].
@@ -138,11 +139,17 @@ fn firmware_replay_dir() -> PathBuf {
     ci_out("firmware-replay")
 }
 
+/// Where CI's firmware replay of the second recording ([`crate::fast_demo`]) writes.
+fn fast_demo_replay_dir() -> PathBuf {
+    ci_out("firmware-replay-fast-demo")
+}
+
 /// The budgets of `memory-budget.md` on the firmware replay's `cost.json`, without a second QEMU
 /// run; the figures as JSON in `target/ci/budgets.json`.
 fn budgets() -> Result<()> {
     let opts = crate::budgets::Options {
         from: Some(firmware_replay_dir()),
+        also: vec![(crate::fast_demo::NAME.to_owned(), fast_demo_replay_dir())],
         json: Some(ci_out("budgets.json")),
         ..crate::budgets::Options::new(&root())
     };

@@ -51,6 +51,7 @@ mod budgets;
 mod cargo;
 mod ci;
 mod cost;
+mod fast_demo;
 mod firmware;
 mod heldout;
 mod paths;
