@@ -23,13 +23,20 @@ pub mod source;
 
 use anyhow::Result;
 use ferroslam_core::backend::BackendParams;
-use ferroslam_core::config::{
-    HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga, tracking_buffer_pixels,
-};
+use ferroslam_core::config::{HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::SLAM_FRONTEND;
-use ferroslam_core::tracking::FrontendParams;
+use ferroslam_core::tracking::{FrontendParams, QvgaFrontend, VgaFrontend};
+
+/// `make()`'s value on the heap. The core's structures are hundreds of KB to megabytes, and Rust
+/// builds a value on the stack before boxing it: built in this frame of its own, the value takes
+/// stack only while it is made, not in every frame the optimizer inlines its caller into (with
+/// all profiles inlined into one frame, a replay overflowed a 2 MB thread's stack).
+#[inline(never)]
+pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
+    Box::new(make())
+}
 
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use result::{BackendReport, TrackedFrame, TrackingRun};
@@ -140,12 +147,12 @@ where
     let progress = Progress { expected_frames: expected, bar: options.progress_bar };
     match (options.mode, vga) {
         (TrackMode::Odometry, true) => {
-            odometry::run::<640, 480, { tracking_buffer_pixels(640, 480) }, S>(
-                source, progress, cam, odometry,
-            )
+            let frontend = || boxed(|| VgaFrontend::with_params(odometry));
+            odometry::run(source, progress, cam, frontend)
         }
         (TrackMode::Odometry, false) => {
-            odometry::run::<320, 240, 0, S>(source, progress, cam, odometry)
+            let frontend = || boxed(|| QvgaFrontend::with_params(odometry));
+            odometry::run(source, progress, cam, frontend)
         }
         (TrackMode::Slam { quota, schedule, map, .. }, vga) => {
             let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };

@@ -5,29 +5,31 @@ use anyhow::Result;
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::map::BoardMap;
-use ferroslam_core::tracking::{Frontend, FrontendParams, FrontendState};
+use ferroslam_core::system::Tracker;
+use ferroslam_core::tracking::FrontendState;
 
 use super::data_path::{Progress, drive};
 use super::result::{TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
-/// Runs `source` through a boxed `Frontend<W, H, C>` with `params` and the board's map.
+/// Runs `source` through the front end `make_frontend` builds (a profile's, boxed: hundreds of
+/// KB, never kept on the stack) and the board's map.
 ///
 /// # Errors
 /// As [`drive`]; a frame the front end rejects (size or timestamp).
-pub(super) fn run<const W: usize, const H: usize, const C: usize, S>(
+pub(super) fn run<F, S>(
     source: &mut S,
     progress: Progress,
     cam: &PinholeCamera,
-    params: FrontendParams,
+    make_frontend: impl FnOnce() -> Box<F>,
 ) -> Result<TrackingRun>
 where
+    F: Tracker<BoardMap>,
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    // Hundreds of KB each: boxed, never kept on the stack.
-    let mut frontend: Box<Frontend<W, H, C>> = Box::new(Frontend::with_params(params));
-    let mut map: Box<BoardMap> = Box::default();
+    let mut frontend = make_frontend();
+    let mut map: Box<BoardMap> = super::boxed(BoardMap::default);
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = drive(source, progress, |frame| {
         let r = frontend.process(frame, cam, &mut map)?;
@@ -55,7 +57,7 @@ where
         lost_frames: stats.lost_frames as usize,
         reinitialized_frames: stats.reinitializations as usize,
         initializing_frames: stats.initializing_frames as usize,
-        state_bytes: std::mem::size_of::<Frontend<W, H, C>>() + std::mem::size_of::<BoardMap>(),
+        state_bytes: std::mem::size_of::<F>() + std::mem::size_of::<BoardMap>(),
         backend: None,
     })
 }
@@ -63,6 +65,7 @@ where
 mod tests {
     use super::*;
     use crate::frame::OwnedFrame;
+    use ferroslam_core::tracking::QvgaFrontend;
 
     fn frame(width: usize, height: usize, depth_level: u8) -> OwnedFrame {
         let (dw, dh) = (width >> depth_level, height >> depth_level);
@@ -86,7 +89,7 @@ mod tests {
     fn frames_that_do_not_fit_the_front_end_name_every_size() {
         // What a replay reports when the front end refuses a frame: the core's error.
         let fits = |f: &OwnedFrame, c: &PinholeCamera| {
-            let mut frontend: Box<Frontend<320, 240>> = Box::default();
+            let mut frontend: Box<QvgaFrontend> = Box::default();
             let mut map: Box<BoardMap> = Box::default();
             frontend.process(&f.view().unwrap(), c, &mut map).map(|_| ()).map_err(|e| e.to_string())
         };

@@ -232,8 +232,8 @@ where
     S::Error: std::error::Error + Send + Sync + 'static,
 {
     let Setup { quota, schedule, scale, frontend, backend } = *setup;
-    // A megabyte or more: never on the stack.
-    let mut slam: Box<Slam<P>> = Box::new(Slam::with_params(frontend, backend));
+    // A megabyte or more.
+    let mut slam: Box<Slam<P>> = super::boxed(|| Slam::with_params(frontend, backend));
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
     let mut stepper =
