@@ -109,11 +109,7 @@ fn track(
     for _ in 0..profile.downsample_levels {
         cam = cam.downscaled_2x().map_err(|e| anyhow::anyhow!("intrinsics: {e}"))?;
     }
-    let mut source = ProfileSource::new(
-        SynthSource::starting_at(sequence, options.skip_frames),
-        profile.downsample_levels,
-        depth_level,
-    );
+    let mut source = profile_source(sequence, options);
     let sensor = SensorModel {
         depth_noise_coeff_per_m: sensor_depth_noise(options.synth.depth_noise_k),
         ..SensorModel::DEFAULT
@@ -147,14 +143,9 @@ fn data_path(
     out: &Path,
 ) -> Result<RunOutputs> {
     let profile = options.profile;
-    let depth_level = options.depth_level.unwrap_or(profile.depth_level);
     let frames = sequence.len() - options.skip_frames;
     let started = Instant::now();
-    let mut source = ProfileSource::new(
-        SynthSource::starting_at(sequence, options.skip_frames),
-        profile.downsample_levels,
-        depth_level,
-    );
+    let mut source = profile_source(sequence, options);
     let progress = Progress { expected_frames: frames, bar: options.progress_bar };
     let run = run::data_path(&mut source, progress)?;
     let wall_s = started.elapsed().as_secs_f64();
@@ -178,6 +169,20 @@ fn data_path(
     report.write(out)?;
     std::fs::write(out.join("baseline_eval.json"), serde_json::to_string_pretty(&evaluation)?)?;
     Ok(RunOutputs { report, evaluation: Some(evaluation), wall_s })
+}
+
+/// The rendered frames from `options.skip_frames` on, brought to `options`' profile and depth
+/// level.
+fn profile_source(
+    sequence: SyntheticSequence,
+    options: &DemoOptions,
+) -> ProfileSource<SynthSource> {
+    let profile = options.profile;
+    ProfileSource::new(
+        SynthSource::starting_at(sequence, options.skip_frames),
+        profile.downsample_levels,
+        options.depth_level.unwrap_or(profile.depth_level),
+    )
 }
 
 /// Writes the sequence `options` render into `dir` as a TUM RGB-D folder (see
