@@ -127,7 +127,7 @@ impl Options {
                         .ok_or_else(|| {
                             anyhow!("--also {v}: expected NAME=DIR, NAME of a-z, 0-9 and _")
                         })?;
-                    if name == "qvga" || name == "vga" || o.also.iter().any(|(n, _)| n == name) {
+                    if PROFILE_RUNS.contains(&name) || o.also.iter().any(|(n, _)| n == name) {
                         bail!("--also {v}: the name {name} is taken");
                     }
                     o.also.push((name.to_owned(), dir.into()));
@@ -143,6 +143,15 @@ impl Options {
         }
         Ok(o)
     }
+}
+
+/// The runs every measurement has: the firmware run's figures are `qvga.*`, the host-side VGA
+/// figures `vga.*`.
+const PROFILE_RUNS: [&str; 2] = ["qvga", "vga"];
+
+/// The run a figure's key names: the part before the first `.`.
+fn run_of(key: &str) -> &str {
+    key.split_once('.').map_or("", |(run, _)| run)
 }
 
 /// Whether `name` can key figures: lower-case letters, digits and `_`, a letter first.
@@ -161,6 +170,7 @@ pub fn run(args: &[String]) -> Result<()> {
 
 /// Builds the firmware, gets the run (see [`Options::from`]) and gathers every figure.
 fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
+    let mut also_dirs = opts.also.clone();
     let dir = match &opts.from {
         Some(dir) => {
             firmware::build_firmware(root, "qemu-mps2")?;
@@ -169,6 +179,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
         None => {
             let fast_demo = fast_demo_out(&opts.out);
             crate::fast_demo::write_and_replay(root, &fast_demo)?;
+            also_dirs.push((crate::fast_demo::NAME.to_owned(), fast_demo));
             let replay = ReplayOptions {
                 dataset: opts.dataset.clone(),
                 calibration: calibration_for(&opts.dataset),
@@ -205,10 +216,6 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
     };
     let cost_json = dir.join("cost.json");
     let run = read_run(&dir)?;
-    let mut also_dirs = opts.also.clone();
-    if opts.from.is_none() {
-        also_dirs.push((crate::fast_demo::NAME.to_owned(), fast_demo_out(&opts.out)));
-    }
     let also = also_dirs
         .iter()
         .map(|(name, dir)| Ok((name.clone(), read_run(dir)?)))
@@ -319,8 +326,8 @@ fn per_frame_figures(name: &str, run: &FirmwareRun) -> Vec<(String, Option<u64>)
 fn runs_not_given(budgets: &[Budget], m: &Measurements) -> Vec<String> {
     let mut missing: Vec<String> = Vec::new();
     for b in budgets {
-        let run = b.key.split_once('.').map_or("", |(run, _)| run);
-        let given = ["qvga", "vga"].contains(&run) || m.also.iter().any(|(n, _)| n == run);
+        let run = run_of(&b.key);
+        let given = PROFILE_RUNS.contains(&run) || m.also.iter().any(|(n, _)| n == run);
         if !given && !missing.iter().any(|r| r == run) {
             missing.push(run.to_owned());
         }
@@ -332,7 +339,7 @@ fn runs_not_given(budgets: &[Budget], m: &Measurements) -> Vec<String> {
 fn check(budgets: &[Budget], m: &Measurements, missing: &[String]) -> Result<Vec<Check>> {
     budgets
         .iter()
-        .filter(|b| !missing.iter().any(|r| b.key.split_once('.').is_some_and(|(k, _)| k == r)))
+        .filter(|b| !missing.iter().any(|r| r == run_of(&b.key)))
         .map(|b| {
             let measured = m.figure(&b.key).ok_or_else(|| {
                 anyhow!("memory-budget.md budgets `{}`, which is not a measured figure", b.key)

@@ -32,11 +32,10 @@ const FOLDER: &str = "demo-shake-fast-rotation";
 /// A file that cannot be written, a build, QEMU or replay failure.
 pub fn write_and_replay(root: &Path, out: &Path) -> Result<()> {
     let dataset = out.join(FOLDER);
-    let dataset = dataset.as_path();
     let made_by = "cargo xtask (budgets' second recording: demo --shake 1 --fast-rotation)";
-    let frames = write_dataset(dataset, &options(), made_by)?;
+    let frames = write_dataset(&dataset, &options(), made_by)?;
     let replay = ReplayOptions {
-        dataset: dataset.to_path_buf(),
+        dataset,
         calibration: None,
         max_frames: frames,
         out: out.to_path_buf(),
