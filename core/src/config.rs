@@ -32,6 +32,16 @@ pub mod capacity {
     pub const MAX_KEYFRAMES: usize = super::BOARD_MAP.keyframes;
     /// Landmarks the board's map holds at once.
     pub const MAX_LANDMARKS: usize = super::BOARD_MAP.landmarks;
+    /// Verification points a remembered keyframe keeps (3D point and descriptor each).
+    pub const PLACE_POINTS: usize = 48;
+    /// Width of a keyframe's place key, cells (a 16 x 12 thumbnail of the frame).
+    pub const PLACE_KEY_W: usize = 16;
+    /// Height of a keyframe's place key, cells.
+    pub const PLACE_KEY_H: usize = 12;
+    /// Bytes of one remembered keyframe in the long-term store (a fixed-size record).
+    pub const PLACE_RECORD_BYTES: usize = 1024;
+    /// Keyframes the board's long-term store holds: 512 records of 1 KiB, 512 KiB of flash.
+    pub const BOARD_STORE_KEYFRAMES: usize = 512;
 }
 
 /// The capacities of a map and of the back end that adjusts it.

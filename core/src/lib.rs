@@ -11,8 +11,9 @@
 //!   advances the back end by a fixed quota of work, and [`system::Slam::overlap`] lends the two
 //!   apart so the back end's solve can run beside the next frame's tracking with the same bits.
 //!   It also turns results into [`wire`] messages.
-//! - *`loops`* (to come, beside `backend`): place recognition over the long-term store,
-//!   geometric verification, loop correction through the segment graph, relocalization.
+//! - [`loops`] (beside `backend`): the place memory: keyframes leaving the map remembered in a
+//!   long-term store, and relocalization of a lost frame in a remembered place, verified by 3D-3D
+//!   RANSAC (loop closure through the segment graph is to come).
 //! - *`ar`* (to come, beside `backend`): planes detected on depth and anchors that follow them.
 //! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
 //!   segmented global bundle adjustment, in bounded steps ([`backend::SolveJob`]).
@@ -64,6 +65,7 @@ pub mod frame;
 pub mod geometry;
 mod grid_spread;
 pub mod image;
+pub mod loops;
 pub mod map;
 pub mod matching;
 pub mod optim;

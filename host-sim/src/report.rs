@@ -10,7 +10,8 @@ use sha2::Digest;
 use crate::eval::{self, EvalReport};
 use crate::plot;
 use crate::run::{
-    BackendReport, DataPathRun, FrameStats, TrackMode, TrackedFrame, TrackingRun, median,
+    BackendReport, DataPathRun, FrameStats, PlacesReport, TrackMode, TrackedFrame, TrackingRun,
+    median,
 };
 use crate::trajectory::Trajectory;
 
@@ -50,9 +51,18 @@ pub struct Report {
     /// Frames where tracking restarted from a keyframe at the predicted pose after a loss: a pose
     /// the images did not confirm.
     pub reinitialized_frames: usize,
-    /// Frames before the first keyframe: no pose, no world frame yet. With the three above they
+    /// Frames where tracking restarted in a remembered place that geometric verification
+    /// accepted: a pose the images confirmed against the map.
+    pub relocalized_frames: usize,
+    /// Frames before the first keyframe: no pose, no world frame yet. With the four above they
     /// add up to `frames` (tracking modes).
     pub initializing_frames: usize,
+    /// Relocalizations: how many and at which frames (0-based, in the order played); null
+    /// without a place memory (odometry, `--no-places`).
+    pub relocalizations: Option<Relocalizations>,
+    /// The place memory's figures (SLAM mode with places).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub places: Option<PlacesReport>,
     /// Keyframes made (0 in data-path mode).
     pub keyframes: usize,
     /// ATE RMSE of CameraTrajectory.txt against ground truth, metres; null without one of them
@@ -90,6 +100,15 @@ pub struct Report {
     pub odometry: Vec<TrackedFrame>,
 }
 
+/// Relocalizations of a run (report.json `relocalizations`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Relocalizations {
+    /// Frames that relocalized.
+    pub count: usize,
+    /// Their indices, 0-based, in the order played.
+    pub frames: Vec<usize>,
+}
+
 impl Report {
     /// A data-path report of `run`; `note` says what the run did.
     pub fn data_path(
@@ -109,7 +128,10 @@ impl Report {
             tracked_frames: 0,
             lost_frames: 0,
             reinitialized_frames: 0,
+            relocalized_frames: 0,
             initializing_frames: 0,
+            relocalizations: None,
+            places: None,
             keyframes: 0,
             ate_rmse_m: None,
             evaluation_error: None,
@@ -153,7 +175,13 @@ impl Report {
             tracked_frames: run.tracked_frames,
             lost_frames: run.lost_frames,
             reinitialized_frames: run.reinitialized_frames,
+            relocalized_frames: run.relocalized_frames,
             initializing_frames: run.initializing_frames,
+            relocalizations: run.places.as_ref().map(|p| Relocalizations {
+                count: p.relocalized_frames.len(),
+                frames: p.relocalized_frames.clone(),
+            }),
+            places: run.places.clone(),
             keyframes: run.keyframes.len(),
             ate_rmse_m: evaluation.map(|e| e.ate.rmse),
             evaluation_error: None,
@@ -284,13 +312,14 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
         (None, None) => "n/a (no ground truth)".to_owned(),
     };
     format!(
-        "{} ({}): {} frames: {} tracked, {} re-initialised, {} lost, {} before the first \
-         keyframe; {} keyframes; ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
+        "{} ({}): {} frames: {} tracked, {} relocalised, {} re-initialised, {} lost, {} before \
+         the first keyframe; {} keyframes; ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
          in the core); core state {} bytes",
         report.mode,
         report.profile,
         report.frames,
         report.tracked_frames,
+        report.relocalized_frames,
         report.reinitialized_frames,
         report.lost_frames,
         report.initializing_frames,

@@ -20,7 +20,10 @@ use ferroslam_core::features::{Feature, FeatureVec, QvgaHessianDetector, VgaHess
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
-use ferroslam_core::map::{BoardMap, HostMap, KeyFrame, Landmark, Observation};
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::map::{
+    BoardMap, HostMap, KeyFrame, Landmark, NoStore, Observation, PLACE_KEY_CELLS,
+};
 use ferroslam_core::pose::small_image_rotation::SmallImage;
 use ferroslam_core::pose::{InlierMask, MotionModel, PoseEstimate};
 use ferroslam_core::system::{HostQvga, QvgaSlam, Slam, VgaSlam};
@@ -103,8 +106,13 @@ pub fn core_structures() -> Vec<Structure> {
             "map::KeyFrame",
             format!(
                 "pose, time, `MAX_OBSERVATIONS_PER_KEYFRAME` = {MAX_OBSERVATIONS_PER_KEYFRAME} \
-                 observations"
+                 observations, a {PLACE_KEY_CELLS}-byte place key"
             ),
+        ),
+        row::<PlaceMemory<NoStore>>(
+            "loops::PlaceMemory",
+            "the place memory beside its store: one record's buffer (1 KiB), counters, RANSAC \
+             state; the store itself is a port (flash on a board, RAM on the host)",
         ),
         row::<BoardMap>(
             "map::BoardMap",

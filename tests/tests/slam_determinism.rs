@@ -26,6 +26,7 @@ fn replay(quota: u32, schedule: Schedule) -> TrackingRun {
         schedule,
         map: MapScale::Board,
         window_levels: BackendParams::DEFAULT.window_levels,
+        places: true,
     };
     run::track(&mut reader, FRAMES, &cam, &RunOptions::new(QVGA, mode)).unwrap()
 }

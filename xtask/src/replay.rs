@@ -159,8 +159,9 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
-    // The firmware's settings: the board's map and quota (`TrackMode::SLAM`).
-    let host = run::track(&mut reader, frames, &cam, &RunOptions::new(QVGA, TrackMode::SLAM))?;
+    // The firmware's settings: the board's map and quota, no place memory (`TrackMode::FIRMWARE`).
+    let options = RunOptions::new(QVGA, TrackMode::FIRMWARE);
+    let host = run::track(&mut reader, frames, &cam, &options)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
     let work: Vec<FrontendWork> = host
@@ -390,6 +391,7 @@ mod tests {
                 guide_stage: "motion-model",
                 recovery: false,
                 reinitialized: false,
+                relocalized: false,
                 final_stages: 1,
                 guide_runs: 0,
                 rotation_estimated: false,
@@ -413,7 +415,9 @@ mod tests {
             tracked_frames: fw.len(),
             lost_frames: 0,
             reinitialized_frames: 0,
+            relocalized_frames: 0,
             initializing_frames: 0,
+            places: None,
             state_bytes: 0,
             backend: None,
         }

@@ -52,3 +52,99 @@ pub fn replay_with_bar(
     }
     Ok((frames, ate))
 }
+
+/// What a jump-back replay must show (issue 47): the camera carried back to a place it has
+/// seen is relocalized soon after the jump, the run's ATE stays within a bar, and no frame
+/// whose pose is far off is reported as tracking.
+#[derive(Debug, Clone, Copy)]
+pub struct JumpBack<'a> {
+    /// The frame ranges played, e.g. `0-700,100-999`.
+    pub frames: &'a str,
+    /// The first frame (0-based, in the order played) after the jump.
+    pub jump_at: usize,
+    /// The relocalization must come at most this many frames after `jump_at`.
+    pub within_frames: usize,
+    /// ATE RMSE bar of the SLAM trajectory, metres.
+    pub bar_m: f64,
+    /// A frame whose aligned error is over this (metres) must not be reported tracking.
+    pub wrong_m: f64,
+}
+
+/// Replays `dataset` with `calibration` at QVGA in SLAM mode (the board's defaults, place memory
+/// on) over `jump.frames` into `out`, and checks [`JumpBack`]'s bars. Returns the ATE RMSE and
+/// the first relocalized frame.
+///
+/// # Errors
+/// A bar not met, or the replay's own errors.
+pub fn replay_jump_back(
+    dataset: &Path,
+    calibration: &Path,
+    jump: &JumpBack<'_>,
+    out: &Path,
+) -> Result<(f64, usize)> {
+    let options = ReplayOptions {
+        dataset: DatasetOptions {
+            calibration: CalibrationSource::Path(calibration.to_path_buf()),
+            profile: QVGA,
+            frames: Some(jump.frames.parse()?),
+            ..DatasetOptions::default()
+        },
+        ..ReplayOptions::new(Some(TrackMode::SLAM))
+    };
+    let outputs = Replay::open(dataset, options)?.run(out)?;
+    let report = &outputs.report;
+    eprintln!(
+        "replay {} --frames {}: {}",
+        dataset.display(),
+        jump.frames,
+        summary(report, outputs.wall_s)
+    );
+    let label = format!("jump-back {}", jump.frames);
+    let first = report
+        .relocalizations
+        .as_ref()
+        .and_then(|r| r.frames.iter().copied().find(|&f| f >= jump.jump_at))
+        .with_context(|| {
+            format!("{label}: no relocalization after the jump at frame {}", jump.jump_at)
+        })?;
+    if first > jump.jump_at + jump.within_frames {
+        bail!(
+            "{label}: relocalized at frame {first}, over {} frames after the jump at {}",
+            jump.within_frames,
+            jump.jump_at
+        );
+    }
+    let evaluation =
+        outputs.evaluation.as_ref().with_context(|| format!("{label}: no evaluation"))?;
+    let ate = evaluation.ate.rmse;
+    let tracking: std::collections::HashSet<u64> = report
+        .odometry
+        .iter()
+        .filter(|f| f.state == "tracking")
+        .map(|f| f.timestamp_s.to_bits())
+        .collect();
+    let wrong: Vec<f64> = evaluation
+        .matches
+        .iter()
+        .filter(|m| m.ate_m > jump.wrong_m && tracking.contains(&m.est.timestamp_s.to_bits()))
+        .map(|m| m.est.timestamp_s)
+        .collect();
+    eprintln!(
+        "{label}: relocalized at frame {first} (jump at {}), ATE RMSE {ate:.4} m (bar {:.3} m), {} frames over {:.2} m reported tracking",
+        jump.jump_at,
+        jump.bar_m,
+        wrong.len(),
+        jump.wrong_m
+    );
+    if ate > jump.bar_m {
+        bail!("{label}: ATE RMSE {ate:.4} m is over the bar of {:.3} m", jump.bar_m);
+    }
+    if let Some(t) = wrong.first() {
+        bail!(
+            "{label}: {} frames reported tracking with an error over {:.2} m, the first at t = {t} s",
+            wrong.len(),
+            jump.wrong_m
+        );
+    }
+    Ok((ate, first))
+}

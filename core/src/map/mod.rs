@@ -3,6 +3,8 @@
 //!
 //! - A [`KeyFrame`] holds its camera-to-world pose, its timestamp, a creation number and the
 //!   [`Observation`]s it made (landmark, pixel, measured depth), compactly encoded.
+//! - The long-term tier ([`PlaceRecord`] behind a [`KeyframeStore`], in `place.rs`): what is
+//!   remembered of a keyframe once it leaves the active map.
 //! - A [`Landmark`] holds its world position, the keyframe that created it, how many keyframes
 //!   observe it, the counters the back end keeps (times optimized, the reference flag), and a
 //!   compact descriptor of its appearance (for map reuse).
@@ -27,6 +29,7 @@
 
 mod arena;
 mod observation;
+mod place;
 
 #[cfg(test)]
 mod tests;
@@ -38,6 +41,10 @@ use nalgebra::Point3;
 
 pub use arena::{Arena, Handle};
 pub use observation::Observation;
+pub use place::{
+    KeyframeStore, NoStore, PLACE_KEY_CELLS, PlaceKey, PlacePoint, PlaceRecord, RamStore,
+    RecordBytes, RecordError, SlotOutOfRange,
+};
 
 use crate::config::{BOARD_MAP, HOST_MAP, capacity};
 use crate::features::Descriptor;
@@ -67,6 +74,8 @@ pub struct KeyFrame {
     pub seq: u32,
     /// The landmarks this keyframe observed, in the order they were added.
     pub observations: Vec<Observation, MAX_OBSERVATIONS_PER_KEYFRAME>,
+    /// Its frame's place key (for the long-term store; zeros until the front end sets it).
+    pub place_key: PlaceKey,
 }
 
 /// A landmark of the map.
@@ -181,7 +190,13 @@ impl<const K: usize, const L: usize> Map<K, L> {
     /// # Errors
     /// [`MapError::KeyFramesFull`].
     pub fn add_keyframe(&mut self, t_wc: Pose, timestamp_s: f64) -> Result<KeyFrameId, MapError> {
-        let kf = KeyFrame { t_wc, timestamp_s, seq: self.next_seq, observations: Vec::new() };
+        let kf = KeyFrame {
+            t_wc,
+            timestamp_s,
+            seq: self.next_seq,
+            observations: Vec::new(),
+            place_key: PlaceKey([0; PLACE_KEY_CELLS]),
+        };
         let id = self.keyframes.insert(kf).map_err(|_| MapError::KeyFramesFull)?;
         self.next_seq = self.next_seq.wrapping_add(1);
         Ok(KeyFrameId(id))

@@ -98,6 +98,11 @@ impl SmallImage {
         self.block > 0
     }
 
+    /// The blurred [`SMALL_W`] x [`SMALL_H`] level, row-major, when it holds a frame.
+    pub fn fine(&self) -> Option<&[u8]> {
+        self.is_built().then_some(&self.fine[..])
+    }
+
     /// Reduces `img` (from 80 x 60 to 719 x 539; its size an exact multiple `s` of 80 x 60 is
     /// best: other sizes use the top-left `80 s x 60 s` pixels). Returns `false` (and holds no
     /// frame) for a size outside that range.

@@ -28,7 +28,7 @@ use crate::backend::{BackendError, BackendParams, BackendStatus};
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
 use crate::map::KeyFrameId;
-use crate::tracking::{FrameResult, FrontendError, FrontendParams};
+use crate::tracking::{FrameResult, FrontendError, FrontendParams, NoPlaces, Places};
 
 pub use crate::backend::SolveJob;
 pub use crate::config::{DEFAULT_BACKEND_QUOTA, HostQvga, HostVga, Qvga, Vga};
@@ -82,7 +82,8 @@ impl<P: ProfileTypes> Slam<P> {
     }
 
     /// Tracks one frame and hands a new keyframe to the back end (see
-    /// [`Frontend::process`](crate::tracking::Frontend::process)).
+    /// [`Frontend::process`](crate::tracking::Frontend::process)), with no place memory: a
+    /// keyframe leaving the map is forgotten and a lost frame does not relocalize.
     ///
     /// # Errors
     /// As `Frontend::process`; nothing changes then.
@@ -91,8 +92,23 @@ impl<P: ProfileTypes> Slam<P> {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
     ) -> Result<FrameResult, FrontendError> {
+        self.process_with(frame, cam, &mut NoPlaces)
+    }
+
+    /// As [`Self::process`], with `places` (a [`crate::loops::PlaceMemory`] over a store) as the
+    /// place memory: keyframes leaving the map are remembered there, and a frame that cannot be
+    /// tracked is relocalized in a verified remembered place.
+    ///
+    /// # Errors
+    /// As `Frontend::process`; nothing changes then.
+    pub fn process_with(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        places: &mut impl Places,
+    ) -> Result<FrameResult, FrontendError> {
         self.tell_backend();
-        let result = self.frame_job().process(frame, cam);
+        let result = self.frame_job().process_with(frame, cam, places);
         self.tell_backend();
         result
     }
@@ -199,7 +215,20 @@ impl<P: ProfileTypes> FrameJob<'_, P> {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
     ) -> Result<FrameResult, FrontendError> {
-        let result = self.frontend.process(frame, cam, self.map)?;
+        self.process_with(frame, cam, &mut NoPlaces)
+    }
+
+    /// As [`Self::process`], with `places` as the place memory (see [`Slam::process_with`]).
+    ///
+    /// # Errors
+    /// As `Frontend::process`; nothing changes then.
+    pub fn process_with(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        places: &mut impl Places,
+    ) -> Result<FrameResult, FrontendError> {
+        let result = self.frontend.process(frame, cam, self.map, places)?;
         let made = result.keyframe.and_then(|kf| self.map.keyframe(kf).map(|k| (kf, k.seq)));
         if made.is_some() {
             *self.new_keyframe = made;

@@ -8,7 +8,9 @@ use crate::config::{HostQvga, HostVga, Profile, Qvga, Vga, tracking_buffer_pixel
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
 use crate::map::{KeyFrame, KeyFrameId, Landmark, LandmarkId, Map};
-use crate::tracking::{FrameResult, Frontend, FrontendError, FrontendParams, FrontendStats};
+use crate::tracking::{
+    FrameResult, Frontend, FrontendError, FrontendParams, FrontendStats, Places,
+};
 
 use super::{SLAM_FRONTEND, Slam};
 
@@ -34,7 +36,8 @@ pub trait ProfileTypes: Profile + Sized {
 
 /// A front end tracking frames into a map of type `M`.
 pub trait Tracker<M> {
-    /// Tracks one frame into `map` (see [`Frontend::process`]).
+    /// Tracks one frame into `map`, with `places` as its place memory (see
+    /// [`Frontend::process`]).
     ///
     /// # Errors
     /// As [`Frontend::process`].
@@ -43,6 +46,7 @@ pub trait Tracker<M> {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut M,
+        places: &mut impl Places,
     ) -> Result<FrameResult, FrontendError>;
 
     /// Running totals.
@@ -104,8 +108,9 @@ impl<const W: usize, const H: usize, const C: usize, const K: usize, const L: us
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
+        places: &mut impl Places,
     ) -> Result<FrameResult, FrontendError> {
-        Frontend::process(self, frame, cam, map)
+        Frontend::process_with(self, frame, cam, map, places)
     }
 
     fn stats(&self) -> FrontendStats {

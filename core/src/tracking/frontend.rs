@@ -10,6 +10,7 @@
 
 use super::FrontendParams;
 use super::local_map::BoardLocalMap;
+use super::places::{NoPlaces, Places};
 use super::result::{FrameResult, FrontendError, FrontendState, FrontendStats, size_mismatch};
 use super::tracker::FrameTracker;
 use crate::config::{tracking_buffer_pixels, tracking_level};
@@ -102,6 +103,23 @@ impl<const W: usize, const H: usize, const C: usize> Frontend<W, H, C> {
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
     ) -> Result<FrameResult, FrontendError> {
+        self.process_with(frame, cam, map, &mut NoPlaces)
+    }
+
+    /// As [`Self::process`], with `places` as the place memory: a keyframe leaving `map` is
+    /// handed to it, and a frame that cannot be tracked asks it where it is
+    /// ([`FrameOutcome::Relocalized`](super::FrameOutcome::Relocalized) when a remembered place
+    /// is verified).
+    ///
+    /// # Errors
+    /// As [`Self::process`].
+    pub fn process_with<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        places: &mut impl Places,
+    ) -> Result<FrameResult, FrontendError> {
         let (width, height) = frame.gray.size();
         let fits = width <= W && height <= H;
         if !fits
@@ -111,7 +129,7 @@ impl<const W: usize, const H: usize, const C: usize> Frontend<W, H, C> {
             return Err(size_mismatch::<W, H>(frame, cam));
         }
         if Self::level_for(width, height) == 0 {
-            return self.tracker.process(frame, cam, map);
+            return self.tracker.process(frame, cam, map, places);
         }
         // `level_for` checked that the halved frame fits and halves exactly: none of these fail.
         let mismatch = || size_mismatch::<W, H>(frame, cam);
@@ -124,6 +142,6 @@ impl<const W: usize, const H: usize, const C: usize> Frontend<W, H, C> {
         let depth = frame.depth.for_coarser_image(1).ok_or_else(mismatch)?;
         let level_cam = cam.downscaled_2x().map_err(|_| mismatch())?;
         let level = RgbdFrame { timestamp_s: frame.timestamp_s, gray, depth };
-        self.tracker.process(&level, &level_cam, map)
+        self.tracker.process(&level, &level_cam, map, places)
     }
 }

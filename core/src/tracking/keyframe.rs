@@ -6,19 +6,24 @@ use nalgebra::Point2;
 
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
 use super::map_reuse::{FEATURE_WORDS, FeatureSet, contains};
+use super::places::{PlaceQuery, Places, QueryPoint};
 use super::tracker::FrameTracker;
 use crate::config::capacity;
 use crate::features::{Descriptor, Feature, HessianParams};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
-use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation};
+use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation, PlaceKey};
 use crate::pose::InlierMask;
+use crate::pose::small_image_rotation::{SMALL_H, SMALL_W};
 
 /// Distance of the neighbours checked for depth discontinuities around a new landmark, pixels.
 const DISCONTINUITY_RADIUS_PX: usize = 2;
 
 /// Observations of a keyframe kept for the landmarks it creates (the rest go to its inliers).
 const NEW_LANDMARK_RESERVE: usize = MAX_OBSERVATIONS_PER_KEYFRAME / 2;
+
+/// Features of a lost frame offered to relocalization at most (a stack buffer of 28 bytes each).
+const QUERY_POINTS: usize = capacity::MAX_TRACKED_LANDMARKS;
 
 /// Features closer than this to the border make no landmark: the template must fit.
 const BORDER_PX: f32 = (PATCH_SIDE / 2) as f32 + 0.5;
@@ -33,11 +38,13 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Returns the keyframe's id, or `None` when the map cannot take a keyframe, or when starting
     /// tracking and fewer than `min_keyframe_landmarks` landmarks result (the keyframe and its new
     /// landmarks are then removed again).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn make_keyframe<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
+        places: &mut impl Places,
         t_cw: &Pose,
         inliers: Option<&InlierMask>,
         octaves: u8,
@@ -45,9 +52,12 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         let t_wc = t_cw.inverse();
         if map.keyframes_full() {
             let local = &self.local;
-            let _ = map.retire_oldest_keyframe(|id| local.contains(id));
+            retire_oldest(map, places, |id| local.contains(id));
         }
         let kf = map.add_keyframe(t_wc, frame.timestamp_s).ok()?;
+        if let Some(k) = map.keyframe_mut(kf) {
+            k.place_key = self.place_key();
+        }
         let tracked = inliers.map_or(0, |m| self.record_inliers(frame, cam, map, kf, t_cw, m));
         let mut used: FeatureSet = [0; FEATURE_WORDS];
         self.work.detected = true;
@@ -61,7 +71,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             0
         };
         let created = if detected {
-            self.add_new_landmarks(frame, cam, map, (kf, &t_wc), inliers, &used)
+            self.add_new_landmarks(frame, cam, (map, places), (kf, &t_wc), inliers, &used)
         } else {
             0
         };
@@ -74,6 +84,45 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         self.keyframing.made(kf, t_wc, (tracked, reacquired, created));
         self.stats.keyframes = self.stats.keyframes.saturating_add(1);
         Some(kf)
+    }
+
+    /// The place key of the frame being processed (from its small image; zeros when it has none).
+    fn place_key(&self) -> PlaceKey {
+        self.recent
+            .small_current
+            .fine()
+            .map_or_else(PlaceKey::default, |px| PlaceKey::of(px, SMALL_W, SMALL_H))
+    }
+
+    /// Asks the place memory (and through it the active `map`) where this frame is, after
+    /// tracking failed: detects features, offers those with valid depth as query points (at most
+    /// [`QUERY_POINTS`], with descriptors) and returns the verified `t_cw`, if any. Its caller
+    /// skips it when the place memory does not relocalize ([`Places::relocalizes`]).
+    #[inline(never)]
+    pub(super) fn query_places<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &Map<K, L>,
+        places: &mut impl Places,
+    ) -> Option<Pose> {
+        self.work.detected = true;
+        let detection = &mut self.detection;
+        detection
+            .detector
+            .detect(&frame.gray, &self.params.hessian, &mut detection.features)
+            .ok()?;
+        let mut points: Vec<QueryPoint, QUERY_POINTS> = Vec::new();
+        for f in &self.detection.features {
+            let Some(z) = landmark_depth(frame, cam, f, &self.params) else { continue };
+            let Some(descriptor) = Descriptor::of(&frame.gray, f.x, f.y) else { continue };
+            let p_c = cam.back_project(f.x, f.y, z);
+            if points.push(QueryPoint { uv: (f.x, f.y), p_c, descriptor }).is_err() {
+                break;
+            }
+        }
+        let query = PlaceQuery { key: self.place_key(), points: &points, size: frame.gray.size() };
+        places.relocalize(&query, map).map(|t_wc| t_wc.inverse())
     }
 
     /// Records the inliers as observations of keyframe `kf` and re-anchors the tracked landmarks
@@ -126,7 +175,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
-        map: &mut Map<K, L>,
+        (map, places): (&mut Map<K, L>, &mut impl Places),
         (kf, t_wc): (KeyFrameId, &Pose),
         inliers: Option<&InlierMask>,
         used: &FeatureSet,
@@ -173,7 +222,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                     if map.remove_orphans(|id| local.contains(id)) == 0
                         && map.oldest_keyframe() != Some(kf)
                     {
-                        let _ = map.retire_oldest_keyframe(|id| local.contains(id));
+                        retire_oldest(map, places, |id| local.contains(id));
                     }
                     match map.add_landmark(p_w, kf) {
                         Ok(id) => id,
@@ -202,6 +251,19 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         }
         created
     }
+}
+
+/// Hands the map's oldest keyframe to the place memory, then retires it with the landmarks no
+/// keyframe observes any more except the `tracked` ones (the map's full-arena policy).
+fn retire_oldest<const K: usize, const L: usize>(
+    map: &mut Map<K, L>,
+    places: &mut impl Places,
+    tracked: impl FnMut(crate::map::LandmarkId) -> bool,
+) {
+    if let Some(oldest) = map.oldest_keyframe() {
+        places.remember(map, oldest);
+    }
+    let _ = map.retire_oldest_keyframe(tracked);
 }
 
 /// The depth of feature `f` if it may become a landmark: far enough from the border for its

@@ -7,8 +7,8 @@
 //! constructors), `pipeline.rs` (the per-frame pipeline below), `landmark_matching.rs` (the guide
 //! and final stages), `keyframe_rule.rs` (when a keyframe is made), `keyframe.rs` (making one:
 //! observations, re-anchoring, new landmarks), `map_reuse.rs` (re-acquiring map landmarks),
-//! `local_map.rs` (the tracked landmarks and their templates), `result.rs` (what a frame gives
-//! back), `params.rs` (every tunable). Candidates are spread over the image by
+//! `local_map.rs` (the tracked landmarks and their templates), `places.rs` (the port to the
+//! place memory), `result.rs` (what a frame gives back), `params.rs` (every tunable). Candidates are spread over the image by
 //! `crate::grid_spread`.
 //!
 //! # Per frame
@@ -51,12 +51,20 @@
 //!    observations, re-anchors the landmarks whose templates are too warped, and turns the
 //!    detected Hessian features with valid depth that are not near an inlier into new landmarks
 //!    (see `keyframe.rs`).
-//! 7. Loss: when tracking fails (too few matches or inliers, no pose), the frame is
-//!    [`FrontendState::Lost`] and its output is the prediction with `tracked == false`: the
-//!    trajectory never jumps. The next frame is tried against the local map first; if that fails
-//!    too, the local map is emptied and a keyframe is made at that frame's predicted pose (the
-//!    trajectory stays continuous, with whatever drift the prediction has), and tracking resumes
-//!    from it. Its [`FrameResult::tracked`] is `false` and [`FrameResult::reinitialized`] `true`.
+//! 7. Loss: when tracking fails (too few matches or inliers, no pose), the frame first asks the
+//!    place memory ([`Places`], given to [`Frontend::process_with`]; `crate::loops` implements
+//!    it) where it is: features are detected, and a remembered place or a keyframe of the active
+//!    map that geometric verification accepts gives the pose. Tracking then restarts from a
+//!    keyframe made there, in the map's frame ([`FrameOutcome::Relocalized`]; the output may jump,
+//!    and says so). Otherwise the frame is [`FrontendState::Lost`] and its output is the
+//!    prediction with `tracked == false`. The next frame is tried against the local map (and the
+//!    place memory) first; if that fails too, the local map is emptied and a keyframe is made at
+//!    that frame's predicted pose (the trajectory stays continuous, with whatever drift the
+//!    prediction has), and tracking resumes from it. Its [`FrameResult::tracked`] is `false` and
+//!    [`FrameResult::reinitialized`] `true`.
+//!
+//! A keyframe the map retires to make room (its oldest) is handed to the place memory first, so
+//! that the robot remembers the places it left ([`Places::remember`]).
 //!
 //! # After bundle adjustment
 //!
@@ -81,6 +89,7 @@ pub mod local_map;
 mod map_reuse;
 mod params;
 mod pipeline;
+mod places;
 mod result;
 mod tracker;
 
@@ -89,6 +98,7 @@ pub use local_map::{
     BoardLocalMap, Insertions, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine,
 };
 pub use params::FrontendParams;
+pub use places::{NoPlaces, PlaceQuery, Places, QueryPoint};
 pub use result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
     GuideStage,

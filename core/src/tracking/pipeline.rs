@@ -2,6 +2,7 @@
 //! of [`Frontend::process`]: tracking the local map, or starting (again) from a keyframe.
 
 use super::keyframe_rule::KeyframeDecision;
+use super::places::Places;
 use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
 use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
@@ -15,13 +16,15 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
+        places: &mut impl Places,
         t_cw: &Pose,
     ) -> FrameResult {
         let first = self.stats.keyframes == 0;
         self.local.clear();
         self.scratch.correspondences.clear();
         self.scratch.sources.clear();
-        let made = self.make_keyframe(frame, cam, map, t_cw, None, self.params.hessian.octaves);
+        let octaves = self.params.hessian.octaves;
+        let made = self.make_keyframe(frame, cam, map, places, t_cw, None, octaves);
         let state = match (made, first) {
             (Some(_), _) => FrontendState::Tracking,
             (None, true) => FrontendState::Initializing,
@@ -37,6 +40,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             state,
             tracked: made.is_some() && first,
             reinitialized: made.is_some() && !first,
+            relocalized: false,
             keyframe: made,
             reference_keyframe: self.keyframing.reference_keyframe(),
             inliers: 0,
@@ -49,12 +53,14 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         }
     }
 
-    /// Tracks the local map; on failure right after a loss, re-initializes.
+    /// Tracks the local map; on failure, relocalizes in a remembered place, or else
+    /// re-initializes when the previous frame was lost too.
     pub(super) fn track_or_recover<const K: usize, const L: usize>(
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
+        places: &mut impl Places,
         predicted_t_cw: &Pose,
     ) -> FrameResult {
         let was_lost = self.recent.state == FrontendState::Lost;
@@ -69,6 +75,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             state: FrontendState::Lost,
             tracked: false,
             reinitialized: false,
+            relocalized: false,
             keyframe: None,
             reference_keyframe: self.keyframing.reference_keyframe(),
             inliers: 0,
@@ -83,8 +90,25 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);
         }
         let Some(est) = summary.estimate else {
+            let found = if places.relocalizes() {
+                self.query_places(frame, cam, map, places)
+            } else {
+                None
+            };
+            if let Some(t_cw) = found {
+                let r = self.initialize(frame, cam, map, places, &t_cw);
+                if r.keyframe.is_some() {
+                    return FrameResult {
+                        reinitialized: false,
+                        relocalized: true,
+                        matches: summary.matches,
+                        guide_matches: summary.guides,
+                        ..r
+                    };
+                }
+            }
             if was_lost {
-                let r = self.initialize(frame, cam, map, predicted_t_cw);
+                let r = self.initialize(frame, cam, map, places, predicted_t_cw);
                 return FrameResult {
                     matches: summary.matches,
                     guide_matches: summary.guides,
@@ -103,7 +127,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 None
             }
             KeyframeDecision::Make { octaves } => {
-                self.make_keyframe(frame, cam, map, &est.t_cw, Some(&est.inliers), octaves)
+                self.make_keyframe(frame, cam, map, places, &est.t_cw, Some(&est.inliers), octaves)
             }
         };
         self.cull_local_map();

@@ -30,6 +30,9 @@ pub enum FrameOutcome {
     /// Tracking restarted from a keyframe made at its predicted pose after a loss: a pose, but
     /// not one the images confirmed.
     Reinitialized,
+    /// Not tracked against the local map, but found in a remembered place (the long-term store)
+    /// and verified there: tracking restarted from a keyframe at that pose, in the map's frame.
+    Relocalized,
     /// Not tracked: its pose is the motion model's prediction.
     Lost,
     /// No keyframe yet (no world frame): the front end waits for a frame with enough
@@ -50,6 +53,9 @@ pub struct FrameResult {
     /// Whether tracking restarted at this frame from a new keyframe at the predicted pose after a
     /// loss (the trajectory is continuous but not corrected across it).
     pub reinitialized: bool,
+    /// Whether tracking restarted at this frame from a remembered place after tracking failed:
+    /// `t_wc` is the verified pose in the map's frame (it may jump from the previous frame's).
+    pub relocalized: bool,
     /// The keyframe this frame became, if it did.
     pub keyframe: Option<KeyFrameId>,
     /// The most recent keyframe after this frame (the one a back end would attach it to).
@@ -120,6 +126,7 @@ impl FrameResult {
     pub fn outcome(&self) -> FrameOutcome {
         match (self.tracked, self.reinitialized, self.state) {
             (true, _, _) => FrameOutcome::Tracked,
+            _ if self.relocalized => FrameOutcome::Relocalized,
             (false, true, _) => FrameOutcome::Reinitialized,
             (false, false, FrontendState::Initializing) => FrameOutcome::Initializing,
             (false, false, _) => FrameOutcome::Lost,
@@ -204,8 +211,8 @@ impl core::error::Error for FrontendError {}
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrontendStats {
-    /// Frames processed: `tracked_frames + reinitializations + lost_frames + initializing_frames`
-    /// (each frame has one [`FrameOutcome`]).
+    /// Frames processed: `tracked_frames + reinitializations + relocalizations + lost_frames +
+    /// initializing_frames` (each frame has one [`FrameOutcome`]).
     pub frames: u32,
     /// Frames whose pose was estimated from the images ([`FrameOutcome::Tracked`]).
     pub tracked_frames: u32,
@@ -214,6 +221,9 @@ pub struct FrontendStats {
     /// Frames where tracking restarted from a new keyframe after a loss
     /// ([`FrameOutcome::Reinitialized`]).
     pub reinitializations: u32,
+    /// Frames where tracking restarted from a verified remembered place
+    /// ([`FrameOutcome::Relocalized`]).
+    pub relocalizations: u32,
     /// Frames before the first keyframe ([`FrameOutcome::Initializing`]).
     pub initializing_frames: u32,
     /// Keyframes made.

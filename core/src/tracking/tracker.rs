@@ -8,6 +8,7 @@ use heapless::Vec;
 use super::FrontendParams;
 use super::keyframe_rule::KeyframeRule;
 use super::local_map::BoardLocalMap;
+use super::places::Places;
 use super::result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
 };
@@ -126,6 +127,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 tracked_frames: 0,
                 lost_frames: 0,
                 reinitializations: 0,
+                relocalizations: 0,
                 initializing_frames: 0,
                 keyframes: 0,
                 keyframes_put_off: 0,
@@ -172,6 +174,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
         map: &mut Map<K, L>,
+        places: &mut impl Places,
     ) -> Result<FrameResult, FrontendError> {
         self.check_input(frame)?;
         let width = frame.gray.width();
@@ -190,14 +193,15 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             self.keyframing.reference = None;
         }
         let result = if self.local.is_empty() || self.keyframing.reference.is_none() {
-            self.initialize(frame, cam, map, &predicted_t_cw)
+            self.initialize(frame, cam, map, places, &predicted_t_cw)
         } else {
-            self.track_or_recover(frame, cam, map, &predicted_t_cw)
+            self.track_or_recover(frame, cam, map, places, &predicted_t_cw)
         };
         let s = &mut self.stats;
         let count = match result.outcome() {
             FrameOutcome::Tracked => &mut s.tracked_frames,
             FrameOutcome::Reinitialized => &mut s.reinitializations,
+            FrameOutcome::Relocalized => &mut s.relocalizations,
             FrameOutcome::Lost => &mut s.lost_frames,
             FrameOutcome::Initializing => &mut s.initializing_frames,
         };

@@ -24,6 +24,7 @@ fn pose_message(i: u32) -> PoseMessage {
         state: FrontendState::Tracking,
         tracked: true,
         reinitialized: false,
+        relocalized: false,
         keyframe: kf.filter(|_| i.is_multiple_of(2)),
         reference_keyframe: kf,
         inliers: 120 + i as usize,

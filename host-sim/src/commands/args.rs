@@ -51,6 +51,7 @@ impl ModeArg {
                 schedule: slam.schedule,
                 map: slam.map,
                 window_levels: slam.window_levels,
+                places: !slam.no_places,
             }),
         }
     }
@@ -75,6 +76,10 @@ pub struct SlamArgs {
     #[arg(long, default_value_t = ferroslam_core::backend::BackendParams::DEFAULT.window_levels,
           value_parser = clap::value_parser!(u8).range(1..))]
     pub window_levels: u8,
+    /// Forget the keyframes that leave the map (SLAM mode): no long-term store, no
+    /// relocalization in a remembered place (the firmware's behaviour until its flash store).
+    #[arg(long)]
+    pub no_places: bool,
 }
 
 /// The command-line parser of a `--depth-level`: 0 to the core's

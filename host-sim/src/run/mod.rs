@@ -39,7 +39,7 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
 }
 
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
-pub use result::{BackendReport, TrackedFrame, TrackingRun};
+pub use result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun};
 pub use slam::{MapScale, Schedule};
 pub use source::{ProfileSource, ProfileSourceError};
 
@@ -59,6 +59,9 @@ pub enum TrackMode {
         /// Covisibility levels a local BA's window grows by (`BackendParams::window_levels`;
         /// the default, 2, is the board's).
         window_levels: u8,
+        /// Whether keyframes leaving the map are remembered in a long-term store (the board's
+        /// capacity, in RAM on the host) and lost frames relocalize in it.
+        places: bool,
     },
 }
 
@@ -70,6 +73,16 @@ impl TrackMode {
         schedule: Schedule::Threaded,
         map: MapScale::Board,
         window_levels: BackendParams::DEFAULT.window_levels,
+        places: true,
+    };
+
+    /// What the firmware runs: [`Self::SLAM`] without the place memory (the firmware has no
+    /// long-term store yet), so a host replay of its frames gives its bits.
+    pub const FIRMWARE: Self = match Self::SLAM {
+        Self::Slam { quota, schedule, map, window_levels, .. } => {
+            Self::Slam { quota, schedule, map, window_levels, places: false }
+        }
+        Self::Odometry => Self::Odometry,
     };
 
     /// The mode's name in reports and on the command line: `odometry` or `slam`.
@@ -154,8 +167,9 @@ where
             let frontend = || boxed(|| QvgaFrontend::with_params(odometry));
             odometry::run(source, progress, cam, frontend)
         }
-        (TrackMode::Slam { quota, schedule, map, .. }, vga) => {
-            let setup = slam::Setup { quota, schedule, scale: map, frontend: slam, backend };
+        (TrackMode::Slam { quota, schedule, map, places, .. }, vga) => {
+            let setup =
+                slam::Setup { quota, schedule, scale: map, frontend: slam, backend, places };
             match (map, vga) {
                 (MapScale::Board, false) => slam::run::<Qvga, S>(source, progress, cam, &setup),
                 (MapScale::Board, true) => slam::run::<Vga, S>(source, progress, cam, &setup),

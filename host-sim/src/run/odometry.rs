@@ -6,7 +6,7 @@ use ferroslam_core::frame::FrameSource;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::map::BoardMap;
 use ferroslam_core::system::Tracker;
-use ferroslam_core::tracking::FrontendState;
+use ferroslam_core::tracking::{FrontendState, NoPlaces};
 
 use super::data_path::{Progress, drive};
 use super::result::{TrackingRun, frame_figures};
@@ -32,7 +32,7 @@ where
     let mut map: Box<BoardMap> = super::boxed(BoardMap::default);
     let (mut camera, mut keyframes, mut per_frame) = (Vec::new(), Vec::new(), Vec::new());
     let data = drive(source, progress, |frame| {
-        let r = frontend.process(frame, cam, &mut map)?;
+        let r = frontend.process(frame, cam, &mut map, &mut NoPlaces)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         if r.state == FrontendState::Initializing {
             // No pose before the first keyframe, which defines the world frame.
@@ -56,6 +56,8 @@ where
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
         reinitialized_frames: stats.reinitializations as usize,
+        relocalized_frames: stats.relocalizations as usize,
+        places: None,
         initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<F>() + std::mem::size_of::<BoardMap>(),
         backend: None,

@@ -30,6 +30,8 @@ pub struct TrackedFrame {
     pub recovery: bool,
     /// Whether tracking restarted at this frame after a loss.
     pub reinitialized: bool,
+    /// Whether tracking restarted at this frame in a verified remembered place.
+    pub relocalized: bool,
     /// Final stages run (the rerun of the winning one included).
     pub final_stages: u8,
     /// Guide runs.
@@ -38,6 +40,31 @@ pub struct TrackedFrame {
     pub rotation_estimated: bool,
     /// Whether features were detected (a keyframe made or attempted).
     pub detected: bool,
+}
+
+/// What the place memory did over a run (SLAM mode with places; `loops::PlaceStats`).
+#[derive(Debug, Clone, Serialize)]
+pub struct PlacesReport {
+    /// Records the long-term store holds at most (the board's).
+    pub store_capacity: usize,
+    /// Records it held at the end.
+    pub stored: usize,
+    /// Keyframes written to it as they left the map.
+    pub remembered: u32,
+    /// Of those, written over a redundant record of a full store.
+    pub thinned: u32,
+    /// Keyframes that left the map with too few verification points to be remembered.
+    pub too_few_points: u32,
+    /// Failed reads or writes, and records that did not decode.
+    pub store_errors: u32,
+    /// Queries of frames the front end could not track.
+    pub queries: u32,
+    /// Candidate places that passed geometric verification.
+    pub verified: u32,
+    /// Queries refused because two places verified different poses.
+    pub ambiguous: u32,
+    /// The frames (0-based, in the order played) that relocalized.
+    pub relocalized_frames: Vec<usize>,
 }
 
 /// What the back end did over a run (SLAM mode).
@@ -111,8 +138,12 @@ pub struct TrackingRun {
     pub lost_frames: usize,
     /// Frames where tracking restarted from a keyframe at the predicted pose after a loss.
     pub reinitialized_frames: usize,
-    /// Frames before the first keyframe (no pose). The four counts add up to the frames.
+    /// Frames where tracking restarted in a verified remembered place.
+    pub relocalized_frames: usize,
+    /// Frames before the first keyframe (no pose). The five counts add up to the frames.
     pub initializing_frames: usize,
+    /// The place memory's figures (SLAM mode with places).
+    pub places: Option<PlacesReport>,
     /// Bytes of the core's state.
     pub state_bytes: usize,
     /// The back end's figures (SLAM mode).
@@ -143,6 +174,7 @@ pub(super) fn frame_figures(timestamp_s: f64, r: &FrameResult) -> TrackedFrame {
         },
         recovery: r.guide_stage.is_recovery(),
         reinitialized: r.reinitialized,
+        relocalized: r.relocalized,
         final_stages: r.work.final_stages,
         guide_runs: r.work.guide_runs,
         rotation_estimated: r.work.rotation_estimated,

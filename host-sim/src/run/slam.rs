@@ -12,14 +12,16 @@ use anyhow::{Result, anyhow, bail};
 use clap::ValueEnum;
 
 use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
+use ferroslam_core::config::capacity::BOARD_STORE_KEYFRAMES;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
-use ferroslam_core::map::KeyFrameId;
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::map::{KeyFrameId, RamStore};
 use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
 use ferroslam_core::tracking::{FrameResult, FrontendParams, FrontendState};
 
 use super::data_path::{Progress, drive};
-use super::result::{BackendReport, TrackingRun, frame_figures};
+use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
@@ -104,6 +106,8 @@ struct Relative {
 /// `schedule`; keyframe poses are recorded after the step.
 struct Stepper<'a, P: ProfileTypes> {
     slam: &'a mut Slam<P>,
+    /// The place memory, when the run has one.
+    places: Option<&'a mut HostPlaces>,
     cam: &'a PinholeCamera,
     quota: u32,
     schedule: Schedule,
@@ -138,7 +142,10 @@ impl<P: ProfileTypes> Stepper<'_, P> {
             }
             self.step()?;
         }
-        Ok(self.slam.process(frame, self.cam)?)
+        Ok(match self.places.as_deref_mut() {
+            Some(places) => self.slam.process_with(frame, self.cam, places)?,
+            None => self.slam.process(frame, self.cam)?,
+        })
     }
 
     /// [`Schedule::Threaded`]: the front end on `frame` with the owed solve step on another
@@ -149,9 +156,13 @@ impl<P: ProfileTypes> Stepper<'_, P> {
         let Some((mut track, mut solve)) = self.slam.overlap(quota) else {
             return Ok(None);
         };
+        let places = self.places.as_deref_mut();
         let (solved, tracked) = std::thread::scope(|scope| {
             let solver = scope.spawn(move || solve.advance(quota));
-            let tracked = track.process(frame, cam);
+            let tracked = match places {
+                Some(places) => track.process_with(frame, cam, places),
+                None => track.process(frame, cam),
+            };
             (solver.join(), tracked)
         });
         if solve_finished(solved)? {
@@ -172,6 +183,7 @@ impl<P: ProfileTypes> Stepper<'_, P> {
         let Some((mut track, mut solve)) = self.slam.overlap_any() else {
             return Ok(None);
         };
+        let places = self.places.as_deref_mut();
         let tracking = AtomicBool::new(true);
         let (solved, tracked) = std::thread::scope(|scope| {
             let solver = scope.spawn(|| {
@@ -182,12 +194,35 @@ impl<P: ProfileTypes> Stepper<'_, P> {
                     }
                 }
             });
-            let tracked = track.process(frame, cam);
+            let tracked = match places {
+                Some(places) => track.process_with(frame, cam, places),
+                None => track.process(frame, cam),
+            };
             tracking.store(false, Ordering::Release);
             (solver.join(), tracked)
         });
         solve_finished(solved)?;
         Ok(Some(tracked?))
+    }
+}
+
+/// What the place memory did over a run; the relocalized frames by their index in the order
+/// played.
+fn places_report(memory: &HostPlaces, per_frame: &[TrackedFrame]) -> PlacesReport {
+    let s = memory.stats();
+    let frames: Vec<usize> =
+        per_frame.iter().enumerate().filter(|(_, f)| f.relocalized).map(|(i, _)| i).collect();
+    PlacesReport {
+        store_capacity: BOARD_STORE_KEYFRAMES,
+        stored: memory.len(),
+        remembered: s.remembered,
+        thinned: s.thinned,
+        too_few_points: s.too_few_points,
+        store_errors: s.store_errors,
+        queries: s.queries,
+        verified: s.verified,
+        ambiguous: s.ambiguous,
+        relocalized_frames: frames,
     }
 }
 
@@ -214,7 +249,12 @@ pub struct Setup {
     pub frontend: FrontendParams,
     /// The back end's parameters.
     pub backend: BackendParams,
+    /// Whether the run remembers keyframes leaving the map and relocalizes in them.
+    pub places: bool,
 }
+
+/// The host's place memory: the board's store capacity, in RAM.
+pub type HostPlaces = PlaceMemory<RamStore<BOARD_STORE_KEYFRAMES>>;
 
 /// Runs `source` through a boxed `Slam<P>` set up by `setup` (`setup.scale` must name `P`'s
 /// map: it is what the report says).
@@ -231,13 +271,23 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    let Setup { quota, schedule, scale, frontend, backend } = *setup;
+    let Setup { quota, schedule, scale, frontend, backend, places } = *setup;
     // A megabyte or more.
     let mut slam: Box<Slam<P>> = super::boxed(|| Slam::with_params(frontend, backend));
+    // Half a megabyte; its RANSAC seeded as the front end's.
+    let mut memory: Option<Box<HostPlaces>> =
+        places.then(|| super::boxed(|| PlaceMemory::new(RamStore::new(), frontend.rng_seed)));
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
-    let mut stepper =
-        Stepper { slam: &mut slam, cam, quota, schedule, record: &mut record, owed: false };
+    let mut stepper = Stepper {
+        slam: &mut slam,
+        places: memory.as_deref_mut(),
+        cam,
+        quota,
+        schedule,
+        record: &mut record,
+        owed: false,
+    };
     let data = drive(source, progress, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
@@ -287,6 +337,7 @@ where
         .collect();
     keyframes.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
     let stats = slam.frontend().stats();
+    let places = memory.map(|m| places_report(&m, &per_frame));
     Ok(TrackingRun {
         data,
         camera: Trajectory::new(camera),
@@ -296,6 +347,8 @@ where
         tracked_frames: stats.tracked_frames as usize,
         lost_frames: stats.lost_frames as usize,
         reinitialized_frames: stats.reinitializations as usize,
+        relocalized_frames: stats.relocalizations as usize,
+        places,
         initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),

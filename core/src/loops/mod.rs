@@ -1,0 +1,272 @@
+//! The place memory: keyframes that leave the active map are remembered in a long-term store
+//! ([`crate::map::KeyframeStore`]), and a frame the front end cannot track is relocalized in a
+//! remembered place that geometric verification accepts.
+//!
+//! [`PlaceMemory`] implements the front end's port ([`crate::tracking::Places`]):
+//! - **Remember** (a keyframe leaving the map): its pose, place key and up to
+//!   [`PLACE_POINTS`](crate::config::capacity::PLACE_POINTS) observed landmarks with a descriptor
+//!   (in its camera frame) become a [`PlaceRecord`] in the next free slot. A full store thins
+//!   itself: the new record replaces the stored one nearest to it in pose (the most redundant),
+//!   never failing and never growing.
+//! - **Relocalize** (a lost frame): every record's key, and every key of the active map's
+//!   keyframes, is compared with the frame's (one pass over the store and the map); the
+//!   [`CANDIDATES`] nearest are verified (`verify.rs`: descriptor matches,
+//!   3D-3D RANSAC with Horn/Umeyama, inlier count, spread and ratio); the best verified place
+//!   gives the pose, unless another candidate verifies a different pose nearly as well (an
+//!   ambiguous scene: nothing is returned). A false relocalization is worse than a missed one.
+//!
+//! Cost: a query reads each record once and decodes [`CANDIDATES`] of them again; each
+//! verification is bounded by [`PLACE_POINTS`](crate::config::capacity::PLACE_POINTS) x the
+//! query's points descriptor comparisons and [`verify::RANSAC_ITERATIONS`] minimal solves.
+//! Deterministic: the RANSAC draws come from a generator seeded by the caller.
+
+mod verify;
+
+#[cfg(test)]
+mod tests;
+
+use heapless::Vec;
+
+use crate::config::capacity::PLACE_POINTS;
+use crate::geometry::Pose;
+use crate::map::{KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, RecordBytes};
+use crate::pose::TrackingRng;
+use crate::tracking::{PlaceQuery, Places};
+
+pub use verify::{Verified, VerifyParams, verify};
+
+/// Remembered places verified per query, the nearest by key.
+pub const CANDIDATES: usize = 3;
+
+/// Fewest verification points for a keyframe to be remembered.
+pub const MIN_RECORD_POINTS: usize = 12;
+
+/// A second verified place whose pose differs from the best's by more than this (metres, or
+/// radians of rotation) makes the query ambiguous when its inliers reach
+/// [`AMBIGUITY_RATIO`] of the best's.
+pub const AMBIGUITY_DISTANCE: f32 = 0.15;
+/// See [`AMBIGUITY_DISTANCE`].
+pub const AMBIGUITY_RATIO: f32 = 0.8;
+
+/// What the place memory did, counted since it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PlaceStats {
+    /// Keyframes written to the store.
+    pub remembered: u32,
+    /// Of those, written over a stored, redundant record (the store was full).
+    pub thinned: u32,
+    /// Keyframes leaving the map with too few verification points to be remembered.
+    pub too_few_points: u32,
+    /// Reads or writes the store failed, and records it held that did not decode.
+    pub store_errors: u32,
+    /// Queries of lost frames.
+    pub queries: u32,
+    /// Candidate places verified.
+    pub verified: u32,
+    /// Queries answered with a pose.
+    pub relocalized: u32,
+    /// Queries refused because two places verified different poses.
+    pub ambiguous: u32,
+}
+
+/// The place memory over store `S` (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct PlaceMemory<S> {
+    store: S,
+    /// Slots `0..len` hold records.
+    len: usize,
+    params: VerifyParams,
+    rng: TrackingRng,
+    stats: PlaceStats,
+    /// One record's bytes, read or written.
+    buf: RecordBytes,
+}
+
+impl<S: KeyframeStore> PlaceMemory<S> {
+    /// A place memory over an empty `store`, its RANSAC seeded by `seed`.
+    pub const fn new(store: S, seed: u64) -> Self {
+        Self {
+            store,
+            len: 0,
+            params: VerifyParams::DEFAULT,
+            rng: TrackingRng::new(seed),
+            stats: PlaceStats {
+                remembered: 0,
+                thinned: 0,
+                too_few_points: 0,
+                store_errors: 0,
+                queries: 0,
+                verified: 0,
+                relocalized: 0,
+                ambiguous: 0,
+            },
+            buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
+        }
+    }
+
+    /// Records held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether no record is held.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Running totals.
+    pub fn stats(&self) -> PlaceStats {
+        self.stats
+    }
+
+    /// The store.
+    pub fn store(&self) -> &S {
+        &self.store
+    }
+
+    /// The record in slot `slot`, or `None` (counted as a store error) when it cannot be read.
+    fn read(&mut self, slot: usize) -> Option<PlaceRecord> {
+        let record = self
+            .store
+            .read(slot, &mut self.buf)
+            .ok()
+            .and_then(|()| PlaceRecord::decode(&self.buf).ok());
+        if record.is_none() {
+            self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+        }
+        record
+    }
+
+    /// The slot a new record at `t_wc` goes to: the next free one, or when the store is full the
+    /// one whose pose is nearest (translation in metres plus rotation in radians).
+    fn slot_for(&mut self, t_wc: &Pose) -> Option<usize> {
+        let capacity = self.store.capacity();
+        if self.len < capacity {
+            return Some(self.len);
+        }
+        let mut best: Option<(f32, usize)> = None;
+        for slot in 0..capacity {
+            let Some(r) = self.read(slot) else { return Some(slot) };
+            let d = pose_distance(&r.t_wc, t_wc);
+            if best.is_none_or(|(b, _)| d < b) {
+                best = Some((d, slot));
+            }
+        }
+        best.map(|(_, slot)| slot)
+    }
+}
+
+/// Translation distance (m) plus rotation angle (rad) between two poses.
+fn pose_distance(a: &Pose, b: &Pose) -> f32 {
+    let d = a.inverse() * b;
+    d.translation.vector.norm() + d.rotation.angle()
+}
+
+impl<S: KeyframeStore> Places for PlaceMemory<S> {
+    fn relocalizes(&self) -> bool {
+        true
+    }
+
+    fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
+        let Some(record) = record_of(map, kf) else {
+            self.stats.too_few_points = self.stats.too_few_points.saturating_add(1);
+            return;
+        };
+        let Some(slot) = self.slot_for(&record.t_wc) else { return };
+        record.encode(&mut self.buf);
+        if self.store.write(slot, &self.buf).is_err() {
+            self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+            return;
+        }
+        if slot == self.len {
+            self.len += 1;
+        } else {
+            self.stats.thinned = self.stats.thinned.saturating_add(1);
+        }
+        self.stats.remembered = self.stats.remembered.saturating_add(1);
+    }
+
+    fn relocalize<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+    ) -> Option<Pose> {
+        self.stats.queries = self.stats.queries.saturating_add(1);
+        // The nearest keys, ascending (ties: the store before the map, each in slot order).
+        let mut nearest: Vec<(u32, Place), CANDIDATES> = Vec::new();
+        let mut offer = |d: u32, place: Place| {
+            let at = nearest.iter().position(|&(e, _)| d < e).unwrap_or(nearest.len());
+            if at < CANDIDATES {
+                if nearest.is_full() {
+                    let _ = nearest.pop();
+                }
+                let _ = nearest.insert(at, (d, place));
+            }
+        };
+        for slot in 0..self.len {
+            let Some(r) = self.read(slot) else { continue };
+            offer(r.key.distance(&query.key), Place::Stored(slot));
+        }
+        for (id, k) in map.keyframes() {
+            offer(k.place_key.distance(&query.key), Place::Active(id));
+        }
+        let mut found: Vec<(Verified, Pose), CANDIDATES> = Vec::new();
+        for &(_, place) in &nearest {
+            let record = match place {
+                Place::Stored(slot) => self.read(slot),
+                Place::Active(id) => record_of(map, id),
+            };
+            let Some(r) = record else { continue };
+            if let Some(v) = verify(query, &r.points, &self.params, &mut self.rng) {
+                self.stats.verified = self.stats.verified.saturating_add(1);
+                let _ = found.push((v, r.t_wc * v.t_rq));
+            }
+        }
+        let (best, t_wc) = found.iter().copied().max_by_key(|(v, _)| v.inliers)?;
+        let rival = found.iter().any(|(v, t)| {
+            pose_distance(t, &t_wc) > AMBIGUITY_DISTANCE
+                && v.inliers as f32 >= AMBIGUITY_RATIO * best.inliers as f32
+        });
+        if rival {
+            self.stats.ambiguous = self.stats.ambiguous.saturating_add(1);
+            return None;
+        }
+        self.stats.relocalized = self.stats.relocalized.saturating_add(1);
+        Some(t_wc)
+    }
+}
+
+/// A candidate place: a record of the store, or a keyframe of the active map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Place {
+    Stored(usize),
+    Active(KeyFrameId),
+}
+
+/// What is remembered of keyframe `kf` of `map`: its pose, key and up to [`PLACE_POINTS`]
+/// observed landmarks with a descriptor, in its camera frame (in observation order: the tracked
+/// inliers, then the landmarks it made). `None` when it has fewer than [`MIN_RECORD_POINTS`] of
+/// them (or is not in the map).
+fn record_of<const K: usize, const L: usize>(
+    map: &Map<K, L>,
+    kf: KeyFrameId,
+) -> Option<PlaceRecord> {
+    let k = map.keyframe(kf)?;
+    let t_cw = k.t_wc.inverse();
+    let mut points: Vec<PlacePoint, PLACE_POINTS> = Vec::new();
+    for obs in &k.observations {
+        let Some(lm) = map.landmark(obs.landmark) else { continue };
+        let Some(descriptor) = lm.descriptor else { continue };
+        if points.push(PlacePoint { p_c: t_cw * lm.p_w, descriptor }).is_err() {
+            break;
+        }
+    }
+    (points.len() >= MIN_RECORD_POINTS).then_some(PlaceRecord {
+        seq: k.seq,
+        timestamp_s: k.timestamp_s,
+        t_wc: k.t_wc,
+        key: k.place_key,
+        points,
+    })
+}

@@ -1,0 +1,225 @@
+use heapless::Vec;
+use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
+
+use super::*;
+use crate::config::capacity::{PLACE_POINTS, PLACE_RECORD_BYTES};
+use crate::features::Descriptor;
+use crate::map::{Observation, PlaceKey, RamStore, RecordError};
+use crate::test_rng::TestRng;
+use crate::tracking::QueryPoint;
+
+const FX: f32 = 260.0;
+const C: (f32, f32) = (160.0, 120.0);
+
+fn pose(t: [f32; 3], axis_angle: [f32; 3]) -> Pose {
+    Pose::from_parts(
+        Translation3::new(t[0], t[1], t[2]),
+        UnitQuaternion::from_scaled_axis(Vector3::new(axis_angle[0], axis_angle[1], axis_angle[2])),
+    )
+}
+
+/// `n` points in front of a camera (1-4 m deep, inside a 320 x 240 view), at millimetres so a
+/// record holds them exactly, with random descriptors.
+fn scene(rng: &mut TestRng, n: usize) -> Vec<PlacePoint, 512> {
+    (0..n)
+        .map(|_| {
+            let z = rng.uniform_f32(1.0, 4.0);
+            let (u, v) = (rng.uniform_f32(10.0, 310.0), rng.uniform_f32(10.0, 230.0));
+            let mm = |x: f32| libm::roundf(x * 1000.0) / 1000.0;
+            let p = Point3::new(mm((u - C.0) * z / FX), mm((v - C.1) * z / FX), mm(z));
+            PlacePoint { p_c: p, descriptor: Descriptor(rng.next_u64()) }
+        })
+        .collect()
+}
+
+/// The place's points seen from a camera at `t_rq` in the place's camera (query to record),
+/// their descriptors with up to `flips` bits changed, after `distractors` unrelated points.
+fn query_of(
+    rng: &mut TestRng,
+    place: &[PlacePoint],
+    t_rq: &Pose,
+    flips: u32,
+    distractors: usize,
+) -> Vec<QueryPoint, 512> {
+    let mut out: Vec<QueryPoint, 512> = scene(rng, distractors)
+        .into_iter()
+        .map(|p| QueryPoint { uv: project(&p.p_c), p_c: p.p_c, descriptor: p.descriptor })
+        .collect();
+    for p in place {
+        let p_q = t_rq.inverse() * p.p_c;
+        let mut d = p.descriptor.0;
+        for _ in 0..rng.next_u32() % (flips + 1) {
+            d ^= 1 << (rng.next_u32() % 64);
+        }
+        out.push(QueryPoint { uv: project(&p_q), p_c: p_q, descriptor: Descriptor(d) }).unwrap();
+    }
+    out
+}
+
+fn project(p: &Point3<f32>) -> (f32, f32) {
+    (FX * p.x / p.z + C.0, FX * p.y / p.z + C.1)
+}
+
+fn query<'a>(points: &'a [QueryPoint]) -> PlaceQuery<'a> {
+    PlaceQuery { key: PlaceKey::default(), points, size: (320, 240) }
+}
+
+fn record(rng: &mut TestRng, t_wc: Pose) -> PlaceRecord {
+    let mut key = PlaceKey::default();
+    key.0.iter_mut().for_each(|k| *k = rng.next_u32() as u8);
+    let points = Vec::from_slice(&scene(rng, PLACE_POINTS)).unwrap();
+    PlaceRecord { seq: 7, timestamp_s: 12.5, t_wc, key, points }
+}
+
+#[test]
+fn records_round_trip_and_damage_is_an_error() {
+    let mut rng = TestRng::new(1);
+    let r = record(&mut rng, pose([0.5, -1.25, 2.0], [0.1, 0.2, -0.3]));
+    let mut buf = [0; PLACE_RECORD_BYTES];
+    r.encode(&mut buf);
+    assert_eq!(PlaceRecord::decode(&buf), Ok(r.clone()));
+    let mut again = [1; PLACE_RECORD_BYTES];
+    PlaceRecord::decode(&buf).unwrap().encode(&mut again);
+    assert_eq!(buf, again, "encode after decode gives the same bytes");
+    for at in [5, 40, 300, PLACE_RECORD_BYTES - 1] {
+        let mut bad = buf;
+        bad[at] ^= 0x10;
+        assert_eq!(PlaceRecord::decode(&bad), Err(RecordError::Corrupt), "byte {at}");
+    }
+    let mut other = buf;
+    other[2] = 9;
+    assert_eq!(PlaceRecord::decode(&other), Err(RecordError::Version(9)));
+    for erased in [0x00, 0xFF] {
+        assert_eq!(PlaceRecord::decode(&[erased; PLACE_RECORD_BYTES]), Err(RecordError::Empty));
+    }
+}
+
+#[test]
+fn place_keys_ignore_brightness_and_tell_scenes_apart() {
+    let mut rng = TestRng::new(2);
+    let mut img = [0u8; 80 * 60];
+    img.iter_mut().for_each(|p| *p = 40 + (rng.next_u32() % 150) as u8);
+    let brighter = img.map(|p| p + 30);
+    let mut other = [0u8; 80 * 60];
+    other.iter_mut().for_each(|p| *p = 40 + (rng.next_u32() % 150) as u8);
+    let (a, b, c) =
+        (PlaceKey::of(&img, 80, 60), PlaceKey::of(&brighter, 80, 60), PlaceKey::of(&other, 80, 60));
+    assert_eq!(a.distance(&b), 0);
+    assert!(a.distance(&c) > 5, "{}", a.distance(&c));
+    assert_eq!(PlaceKey::of(&img, 8, 6), PlaceKey::default(), "smaller than the key");
+}
+
+#[test]
+fn verification_recovers_the_motion_between_two_views() {
+    let mut rng = TestRng::new(3);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_rq = pose([0.12, -0.05, 0.2], [0.05, -0.1, 0.03]);
+    let points = query_of(&mut rng, &place, &t_rq, 4, 120);
+    let mut ransac = TrackingRng::new(9);
+    let v = verify(&query(&points), &place, &VerifyParams::DEFAULT, &mut ransac).unwrap();
+    let err = t_rq.inverse() * v.t_rq;
+    assert!(err.translation.vector.norm() < 2e-3, "{err}");
+    assert!(err.rotation.angle() < 2e-3, "{err}");
+    assert!(v.inliers >= PLACE_POINTS - 2, "{v:?}");
+}
+
+#[test]
+fn verification_refuses_unrelated_places_and_look_alikes() {
+    let mut rng = TestRng::new(4);
+    let params = VerifyParams::DEFAULT;
+    let mut ransac = TrackingRng::new(9);
+    for _ in 0..20 {
+        let place = scene(&mut rng, PLACE_POINTS);
+        let points = query_of(&mut rng, &[], &Pose::identity(), 0, 250);
+        assert!(verify(&query(&points), &place, &params, &mut ransac).is_none());
+    }
+    // Repeated texture: every point looks the same, so no match is unambiguous.
+    let mut place = scene(&mut rng, PLACE_POINTS);
+    place.iter_mut().for_each(|p| p.descriptor = Descriptor(0xA5A5_5A5A_0F0F_F0F0));
+    let points = query_of(&mut rng, &place, &Pose::identity(), 0, 0);
+    assert!(verify(&query(&points), &place, &params, &mut ransac).is_none());
+    // The same points on one small patch of the image: too little spread to trust.
+    let mut patch = scene(&mut rng, PLACE_POINTS);
+    patch.iter_mut().for_each(|p| p.p_c = Point3::new(p.p_c.x * 0.1, p.p_c.y * 0.1, p.p_c.z));
+    let points = query_of(&mut rng, &patch, &Pose::identity(), 0, 0);
+    assert!(verify(&query(&points), &patch, &params, &mut ransac).is_none());
+}
+
+/// A map with one keyframe at `t_wc` observing the landmarks of `place` (camera frame).
+fn map_with(place: &[PlacePoint], t_wc: Pose) -> (Map<4, 128>, KeyFrameId) {
+    let mut map = Map::new();
+    let kf = map.add_keyframe(t_wc, 1.0).unwrap();
+    for p in place {
+        let lm = map.add_landmark(t_wc * p.p_c, kf).unwrap();
+        map.landmark_mut(lm).unwrap().descriptor = Some(p.descriptor);
+        map.add_observation(kf, Observation::new(lm, project(&p.p_c), Some(p.p_c.z)).unwrap())
+            .unwrap();
+    }
+    (map, kf)
+}
+
+#[test]
+fn a_lost_frame_relocalizes_in_a_remembered_keyframe() {
+    let mut rng = TestRng::new(5);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_wk = pose([2.0, 0.5, -1.0], [0.0, 1.2, 0.1]);
+    let (map, kf) = map_with(&place, t_wk);
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 11);
+    let empty: Map<4, 128> = Map::new();
+    assert!(memory.is_empty());
+    assert_eq!(memory.relocalize(&query(&[]), &empty), None);
+    memory.remember(&map, kf);
+    assert_eq!((memory.len(), memory.stats().remembered), (1, 1));
+    let t_kq = pose([0.1, 0.0, 0.15], [0.0, 0.08, 0.0]);
+    let points = query_of(&mut rng, &place, &t_kq, 3, 100);
+    let t_wc = memory.relocalize(&query(&points), &empty).unwrap();
+    let err = (t_wk * t_kq).inverse() * t_wc;
+    assert!(err.translation.vector.norm() < 5e-3 && err.rotation.angle() < 5e-3, "{err}");
+    assert_eq!(memory.stats().relocalized, 1);
+    // Nothing of that place in view: no pose.
+    let elsewhere = query_of(&mut rng, &[], &Pose::identity(), 0, 200);
+    assert_eq!(memory.relocalize(&query(&elsewhere), &empty), None);
+    // The same place still in the active map (and nothing stored) relocalizes too.
+    let mut fresh = PlaceMemory::new(RamStore::<4>::new(), 11);
+    let t_wc = fresh.relocalize(&query(&points), &map).unwrap();
+    let err = (t_wk * t_kq).inverse() * t_wc;
+    assert!(err.translation.vector.norm() < 5e-3 && err.rotation.angle() < 5e-3, "{err}");
+}
+
+#[test]
+fn two_places_that_verify_different_poses_are_ambiguous() {
+    let mut rng = TestRng::new(6);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 11);
+    for t in [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]] {
+        let (map, kf) = map_with(&place, pose(t, [0.0; 3]));
+        memory.remember(&map, kf);
+    }
+    let points = query_of(&mut rng, &place, &Pose::identity(), 0, 50);
+    assert_eq!(memory.relocalize(&query(&points), &Map::<4, 128>::new()), None);
+    assert_eq!(memory.stats().ambiguous, 1);
+}
+
+#[test]
+fn a_full_store_replaces_its_most_redundant_record() {
+    let mut rng = TestRng::new(7);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let mut memory = PlaceMemory::new(RamStore::<2>::new(), 1);
+    for x in [0.0, 2.0, 0.1] {
+        let (map, kf) = map_with(&place, pose([x, 0.0, 0.0], [0.0; 3]));
+        memory.remember(&map, kf);
+    }
+    let s = memory.stats();
+    assert_eq!((memory.len(), s.remembered, s.thinned, s.store_errors), (2, 3, 1, 0));
+    let mut store = memory.store().clone();
+    let mut buf = [0; PLACE_RECORD_BYTES];
+    let xs = [0, 1].map(|slot| {
+        store.read(slot, &mut buf).unwrap();
+        PlaceRecord::decode(&buf).unwrap().t_wc.translation.x
+    });
+    assert_eq!(xs, [0.1, 2.0], "the record at 0 m gave way to the one at 0.1 m");
+    // A keyframe with too few points to verify is not remembered.
+    let (map, kf) = map_with(&place[..MIN_RECORD_POINTS - 1], Pose::identity());
+    memory.remember(&map, kf);
+    assert_eq!(memory.stats().too_few_points, 1);
+}

@@ -1,0 +1,163 @@
+//! Geometric verification of a remembered place against a lost frame: RGB-D gives 3D points on
+//! both sides, so a rigid motion from three matched points (Horn/Umeyama,
+//! [`align_rigid`]) is checked against all matches.
+//!
+//! 1. Matches: each of the place's points takes the query point with the nearest descriptor when
+//!    it is within `max_descriptor_distance` bits and the second nearest is `descriptor_margin`
+//!    bits further (no look-alike).
+//! 2. RANSAC: [`RANSAC_ITERATIONS`] draws of three matches; a match is an inlier when the motion
+//!    brings its query point within `inlier_base_m + inlier_depth_ratio z` of the place's
+//!    (`z` the place point's depth: the sensor's noise grows with it). The first draw with the
+//!    most inliers wins, then the motion is refitted on its inliers and the inliers counted again.
+//! 3. Acceptance: at least `min_inliers` inliers, at least `min_inlier_ratio` of the matches, and
+//!    the inliers' pixels spread over at least `min_spread` of the frame's width and of its
+//!    height (points on one small patch fix a pose poorly and are the typical false match).
+
+use heapless::Vec;
+use nalgebra::Point3;
+
+use crate::config::capacity::PLACE_POINTS;
+use crate::geometry::{Pose, align_rigid};
+use crate::map::PlacePoint;
+use crate::pose::TrackingRng;
+use crate::tracking::PlaceQuery;
+
+/// Draws of three matches per verification.
+pub const RANSAC_ITERATIONS: usize = 96;
+
+const _: () = assert!(PLACE_POINTS <= 64, "inlier sets are 64-bit masks");
+
+/// The thresholds of a verification (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerifyParams {
+    /// Largest descriptor distance of a match, bits of 64.
+    pub max_descriptor_distance: u32,
+    /// The second-nearest query point must be at least this many bits further.
+    pub descriptor_margin: u32,
+    /// Inlier distance at zero depth, metres.
+    pub inlier_base_m: f32,
+    /// Inlier distance growth with depth, metres per metre.
+    pub inlier_depth_ratio: f32,
+    /// Fewest inliers of an accepted place.
+    pub min_inliers: usize,
+    /// Smallest fraction of the matches that must be inliers.
+    pub min_inlier_ratio: f32,
+    /// Smallest extent of the inliers' pixels, as a fraction of the frame's width and height.
+    pub min_spread: f32,
+}
+
+impl VerifyParams {
+    /// The defaults: matches as strict as map reuse's (a different view of the same point stays
+    /// within about 12 of 64 bits; unrelated points differ by about 32), inliers within the
+    /// depth noise of a Kinect-class sensor, and at least 15 inliers spread over a quarter of
+    /// the frame each way.
+    pub const DEFAULT: Self = Self {
+        max_descriptor_distance: 14,
+        descriptor_margin: 4,
+        inlier_base_m: 0.03,
+        inlier_depth_ratio: 0.02,
+        min_inliers: 15,
+        min_inlier_ratio: 0.4,
+        min_spread: 0.25,
+    };
+}
+
+/// A descriptor match: the query point, the place's point (each in its camera, metres) and the
+/// query point's pixel.
+type Match = (Point3<f32>, Point3<f32>, (f32, f32));
+
+/// An accepted place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Verified {
+    /// The query camera's pose in the place keyframe's camera (`t_rq`: query to record).
+    pub t_rq: Pose,
+    /// Inliers of the refitted motion.
+    pub inliers: usize,
+    /// Descriptor matches.
+    pub matches: usize,
+}
+
+/// Verifies the place whose points are `points` (in its camera frame) against `query`; `None`
+/// when it is not accepted.
+pub fn verify(
+    query: &PlaceQuery<'_>,
+    points: &[PlacePoint],
+    params: &VerifyParams,
+    rng: &mut TrackingRng,
+) -> Option<Verified> {
+    let mut matches: Vec<Match, PLACE_POINTS> = Vec::new();
+    for p in points {
+        let mut best = (u32::MAX, None);
+        let mut second = u32::MAX;
+        for q in query.points {
+            let d = q.descriptor.distance(p.descriptor);
+            if d < best.0 {
+                second = best.0;
+                best = (d, Some(q));
+            } else if d < second {
+                second = d;
+            }
+        }
+        let (d, Some(q)) = best else { continue };
+        if d <= params.max_descriptor_distance
+            && second >= d.saturating_add(params.descriptor_margin)
+            && matches.push((q.p_c, p.p_c, q.uv)).is_err()
+        {
+            break;
+        }
+    }
+    let n = matches.len();
+    if n < params.min_inliers.max(3) {
+        return None;
+    }
+    let inliers_of = |t: &Pose| -> u64 {
+        let mut mask = 0u64;
+        for (k, (q, r, _)) in matches.iter().enumerate() {
+            let tol = params.inlier_base_m + params.inlier_depth_ratio * r.z;
+            if (t * q - r).norm_squared() <= tol * tol {
+                mask |= 1 << k;
+            }
+        }
+        mask
+    };
+    let mut best_mask = 0u64;
+    for _ in 0..RANSAC_ITERATIONS {
+        let i = rng.next_u32() as usize % n;
+        let j = rng.next_u32() as usize % n;
+        let k = rng.next_u32() as usize % n;
+        if i == j || j == k || i == k {
+            continue;
+        }
+        let (Some(a), Some(b), Some(c)) = (matches.get(i), matches.get(j), matches.get(k)) else {
+            continue;
+        };
+        let Ok(t) = align_rigid(&[a.0, b.0, c.0], &[a.1, b.1, c.1]) else { continue };
+        let mask = inliers_of(&t);
+        if mask.count_ones() > best_mask.count_ones() {
+            best_mask = mask;
+        }
+    }
+    let mut src: Vec<Point3<f32>, PLACE_POINTS> = Vec::new();
+    let mut dst: Vec<Point3<f32>, PLACE_POINTS> = Vec::new();
+    for (k, (q, r, _)) in matches.iter().enumerate() {
+        if best_mask & (1 << k) != 0 {
+            let _ = (src.push(*q), dst.push(*r));
+        }
+    }
+    let t_rq = align_rigid(&src, &dst).ok()?;
+    let mask = inliers_of(&t_rq);
+    let inliers = mask.count_ones() as usize;
+    let (mut lo, mut hi) = ((f32::MAX, f32::MAX), (f32::MIN, f32::MIN));
+    for (k, (_, _, uv)) in matches.iter().enumerate() {
+        if mask & (1 << k) != 0 {
+            lo = (lo.0.min(uv.0), lo.1.min(uv.1));
+            hi = (hi.0.max(uv.0), hi.1.max(uv.1));
+        }
+    }
+    let (w, h) = (query.size.0 as f32, query.size.1 as f32);
+    let spread = hi.0 - lo.0 >= params.min_spread * w && hi.1 - lo.1 >= params.min_spread * h;
+    let accepted = inliers >= params.min_inliers
+        && inliers as f32 >= params.min_inlier_ratio * n as f32
+        && spread;
+    accepted.then_some(Verified { t_rq, inliers, matches: n })
+}
