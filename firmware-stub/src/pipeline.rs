@@ -9,7 +9,7 @@
 use ferroslam_core::frame::{FrameSource, RgbdFrame, TelemetrySink};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, QvgaSlam};
-use ferroslam_core::tracking::FrontendError;
+use ferroslam_core::tracking::{FrontendError, Places};
 use ferroslam_core::wire::{
     CostMessage, FaultCode, FaultMessage, Message, PoseMessage, StatusMessage, TickUnit,
 };
@@ -37,8 +37,10 @@ impl Pipeline {
         Self { slam: QvgaSlam::new(), next_index: 0, faults: 0 }
     }
 
-    /// Processes one frame (it takes the next frame index, even when rejected), then runs the
-    /// back end for [`BACKEND_QUOTA`] units, and returns the frame's pose message.
+    /// Processes one frame (it takes the next frame index, even when rejected) with `places` as
+    /// the place memory (`ferroslam_core::loops::PlaceMemory` over the board's flash store, or
+    /// `NoPlaces`), then runs the back end for [`BACKEND_QUOTA`] units, and returns the frame's
+    /// pose message.
     ///
     /// # Errors
     /// The front end's [`FrontendError`] for a frame it rejects (size, timestamp). A back-end
@@ -47,8 +49,9 @@ impl Pipeline {
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
+        places: &mut impl Places,
     ) -> Result<PoseMessage, FrontendError> {
-        let pose = self.track(frame, cam)?;
+        let pose = self.track(frame, cam, places)?;
         self.step_backend(cam);
         Ok(pose)
     }
@@ -60,10 +63,11 @@ impl Pipeline {
         &mut self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
+        places: &mut impl Places,
     ) -> Result<PoseMessage, FrontendError> {
         let index = self.next_index;
         self.next_index = self.next_index.saturating_add(1);
-        let result = self.slam.process(frame, cam)?;
+        let result = self.slam.process_with(frame, cam, places)?;
         Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result))
     }
 
@@ -122,7 +126,8 @@ pub trait TickClock {
     fn now(&mut self) -> u32;
 }
 
-/// One frame through the board: read it from `source`, process it, send its [`PoseMessage`] and
+/// One frame through the board: read it from `source`, process it (with `places` as the place
+/// memory), send its [`PoseMessage`] and
 /// [`CostMessage`] to `sink` (or a [`FaultMessage`] when the source fails or the pipeline rejects
 /// the frame; the caller may go on with the next frame either way).
 ///
@@ -134,6 +139,7 @@ pub trait TickClock {
 pub fn run_frame<S, T, C>(
     source: &mut S,
     pipeline: &mut Pipeline,
+    places: &mut impl Places,
     cam: &PinholeCamera,
     sink: &mut T,
     clock: &mut C,
@@ -150,7 +156,7 @@ where
         Ok(None) => return Ok(FrameOutcome::End),
         Ok(Some(frame)) => {
             let t1 = clock.now();
-            match pipeline.track(&frame, cam) {
+            match pipeline.track(&frame, cam, places) {
                 Ok(pose) => {
                     let t2 = clock.now();
                     pipeline.step_backend(cam);
@@ -200,6 +206,7 @@ fn frontend_error_code(e: &FrontendError) -> u32 {
 mod tests {
     use super::*;
     use ferroslam_core::image::{DepthView, GrayView, ImageView};
+    use ferroslam_core::tracking::NoPlaces;
     use ferroslam_core::wire::TrackingState;
     use std::boxed::Box;
     use std::vec::Vec;
@@ -261,7 +268,10 @@ mod tests {
         let cam = PinholeCamera::new(292.5, 292.5, 160.0, 120.0, 320, 240).unwrap();
         let mut pipeline = Box::new(Pipeline::new());
         let (mut sink, mut clock) = (Recorder::default(), Counter(0));
-        let mut step = || run_frame(&mut source, &mut pipeline, &cam, &mut sink, &mut clock, |_| 5);
+        let mut places = NoPlaces;
+        let mut step = || {
+            run_frame(&mut source, &mut pipeline, &mut places, &cam, &mut sink, &mut clock, |_| 5)
+        };
 
         // A featureless wall: processed, no keyframe possible, still initializing.
         let Ok(FrameOutcome::Processed { pose, cost }) = step() else { panic!("frame 0") };

@@ -184,6 +184,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
                 dataset: opts.dataset.clone(),
                 calibration: calibration_for(&opts.dataset),
                 max_frames: opts.frames,
+                frames: None,
                 out: opts.out.clone(),
                 qemu_args: Vec::new(),
             };

@@ -131,11 +131,47 @@ fn firmware_replay() -> Result<()> {
         dataset: root().join(SEVEN_SCENES),
         calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
         max_frames: FIRMWARE_REPLAY_FRAMES,
+        frames: None,
         out: firmware_replay_dir(),
         qemu_args: Vec::new(),
     };
     crate::replay::run(&root(), &opts)?;
-    crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())
+    crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
+    firmware_jump_back()
+}
+
+/// The frames of 7-Scenes the firmware's jump-back plays: the camera carried back 420 frames to
+/// a place the board's map has retired (the host relocalizes at frame 521).
+const FIRMWARE_JUMP_BACK: &str = "0-520,100-130";
+
+/// The firmware on 7-Scenes played [`FIRMWARE_JUMP_BACK`]: every pose bit-identical to the host
+/// replay's (the relocalized frame's flag included), and the board's status counting at least one
+/// relocalization, from its flash store.
+fn firmware_jump_back() -> Result<()> {
+    let out = ci_out("firmware-replay-jump-back");
+    let opts = crate::replay::ReplayOptions {
+        dataset: root().join(SEVEN_SCENES),
+        calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
+        max_frames: FIRMWARE_REPLAY_FRAMES,
+        frames: Some(FIRMWARE_JUMP_BACK.parse()?),
+        out: out.clone(),
+        qemu_args: Vec::new(),
+    };
+    crate::replay::run(&root(), &opts)?;
+    let cost = out.join("cost.json");
+    let text =
+        std::fs::read_to_string(&cost).with_context(|| format!("reading {}", cost.display()))?;
+    let doc: serde_json::Value = serde_json::from_str(&text)?;
+    let relocalizations = doc["status"]["relocalizations"].as_u64().unwrap_or(0);
+    eprintln!(
+        "firmware, 7-Scenes --frames {FIRMWARE_JUMP_BACK}: {relocalizations} relocalization(s) on the board"
+    );
+    // Half a gigabyte of frames, not needed again.
+    let _ = std::fs::remove_file(out.join("frames.fsrs"));
+    if relocalizations == 0 {
+        bail!("firmware, 7-Scenes --frames {FIRMWARE_JUMP_BACK}: the board never relocalized");
+    }
+    Ok(())
 }
 
 /// Where CI's firmware replay writes (`cost.json` among the rest), read again by [`budgets`].

@@ -27,7 +27,7 @@ use serde_json::{Value, json};
 use crate::stats::Stats;
 
 /// The layout version of `cost.json` (2: front end and back-end step timed apart).
-pub const FORMAT: u64 = 2;
+pub const FORMAT: u64 = 3;
 
 /// The kind of frame `work` says, in words, e.g. `2 final stages, 1 guide run, detection (a
 /// keyframe)`.
@@ -221,7 +221,8 @@ impl FirmwareRun {
             "elf_fnv1a64": self.elf_fnv1a64,
             "status": {
                 "frames": s.frames, "tracked_frames": s.tracked_frames,
-                "lost_frames": s.lost_frames, "keyframes": s.keyframes,
+                "lost_frames": s.lost_frames, "reinitializations": s.reinitializations,
+                "relocalizations": s.relocalizations, "keyframes": s.keyframes,
                 "recoveries": s.recoveries, "faults": s.faults, "state_bytes": s.state_bytes,
                 "stack_peak_bytes": s.stack_peak_bytes,
             },
@@ -265,6 +266,8 @@ impl FirmwareRun {
             frames: int32(s, "frames")?,
             tracked_frames: int32(s, "tracked_frames")?,
             lost_frames: int32(s, "lost_frames")?,
+            reinitializations: int32(s, "reinitializations")?,
+            relocalizations: int32(s, "relocalizations")?,
             keyframes: int32(s, "keyframes")?,
             recoveries: int32(s, "recoveries")?,
             faults: int32(s, "faults")?,

@@ -38,6 +38,7 @@ pub fn write_and_replay(root: &Path, out: &Path) -> Result<()> {
         dataset,
         calibration: None,
         max_frames: frames,
+        frames: None,
         out: out.to_path_buf(),
         qemu_args: Vec::new(),
     };

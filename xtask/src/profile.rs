@@ -60,6 +60,7 @@ pub fn run(args: &[String]) -> Result<()> {
         dataset: opts.dataset.clone(),
         calibration: calibration_for(&opts.dataset),
         max_frames: opts.frames,
+        frames: None,
         out: out.clone(),
         qemu_args: vec![
             "-plugin".into(),

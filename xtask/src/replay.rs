@@ -31,6 +31,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
+use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::run::{self, RunOptions, TrackMode, TrackingRun};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
@@ -60,6 +61,9 @@ pub struct ReplayOptions {
     pub calibration: Option<PathBuf>,
     /// Frames to run (the earliest).
     pub max_frames: usize,
+    /// The recording's frames in another order (`--frames A-B,C-D,...`, as `ferroslam-sim
+    /// replay --frames`), before `max_frames` applies.
+    pub frames: Option<FrameSelection>,
     /// Output folder.
     pub out: PathBuf,
     /// More QEMU arguments (`profile-firmware`'s `-plugin`); none from the command line.
@@ -67,10 +71,10 @@ pub struct ReplayOptions {
 }
 
 impl ReplayOptions {
-    /// Parses `DATASET [--calibration FILE] [--max-frames N] [--out DIR]`; `default_out` when
-    /// `--out` is missing.
+    /// Parses `DATASET [--calibration FILE] [--max-frames N] [--frames A-B,...] [--out DIR]`;
+    /// `default_out` when `--out` is missing.
     pub fn parse(args: &[String], default_out: PathBuf) -> Result<Self> {
-        let (mut dataset, mut calibration) = (None, None);
+        let (mut dataset, mut calibration, mut frames) = (None, None, None);
         let (mut max_frames, mut out) = (DEFAULT_FRAMES, default_out);
         let mut it = args.iter();
         while let Some(a) = it.next() {
@@ -80,6 +84,10 @@ impl ReplayOptions {
                     max_frames = v.parse().with_context(|| format!("--max-frames {v}"))?;
                 }
                 "--out" => out = it.next().ok_or_else(|| anyhow!("--out needs a value"))?.into(),
+                "--frames" => {
+                    let v = it.next().ok_or_else(|| anyhow!("--frames needs a value"))?;
+                    frames = Some(v.parse().with_context(|| format!("--frames {v}"))?);
+                }
                 "--calibration" => {
                     let v = it.next().ok_or_else(|| anyhow!("--calibration needs a value"))?;
                     calibration = Some(PathBuf::from(v));
@@ -91,14 +99,15 @@ impl ReplayOptions {
         }
         let dataset = dataset.ok_or_else(|| {
             anyhow!(
-                "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--out DIR]"
+                "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--frames \
+                 A-B,...] [--out DIR]"
             )
         })?;
         let calibration = calibration.or_else(|| crate::paths::calibration_for(&dataset));
         if max_frames == 0 {
             bail!("--max-frames must be at least 1");
         }
-        Ok(Self { dataset, calibration, max_frames, out, qemu_args: Vec::new() })
+        Ok(Self { dataset, calibration, max_frames, frames, out, qemu_args: Vec::new() })
     }
 }
 
@@ -115,6 +124,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
         calibration,
         profile: VGA,
         max_frames: Some(opts.max_frames),
+        frames: opts.frames.clone(),
         ..Default::default()
     };
     let sensor = Dataset::open(&opts.dataset, &vga)?;
@@ -159,8 +169,8 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
-    // The firmware's settings: the board's map and quota, no place memory (`TrackMode::FIRMWARE`).
-    let options = RunOptions::new(QVGA, TrackMode::FIRMWARE);
+    // The firmware's settings: the board's map, quota and place memory (`TrackMode::SLAM`).
+    let options = RunOptions::new(QVGA, TrackMode::SLAM);
     let host = run::track(&mut reader, frames, &cam, &options)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
@@ -293,6 +303,10 @@ fn first_difference(fw: &[PoseMessage], host: &TrackingRun) -> Option<String> {
             .or_else(|| {
                 let reinit = p.flags.contains(PoseFlags::REINITIALIZED);
                 field("reinitialized", reinit, hf.reinitialized)
+            })
+            .or_else(|| {
+                let reloc = p.flags.contains(PoseFlags::RELOCALIZED);
+                field("relocalized", reloc, hf.relocalized)
             })
             .or_else(|| field("inliers", usize::from(p.inliers), hf.inliers.min(65535)))
             .or_else(|| field("matches", usize::from(p.matches), hf.matches.min(65535)));

@@ -5,16 +5,20 @@
 //! 1. Matches: each of the place's points takes the query point with the nearest descriptor when
 //!    it is within `max_descriptor_distance` bits and the second nearest is `descriptor_margin`
 //!    bits further (no look-alike).
-//! 2. RANSAC: [`RANSAC_ITERATIONS`] draws of three matches; a match is an inlier when the motion
-//!    brings its query point within `inlier_base_m + inlier_depth_ratio z` of the place's
-//!    (`z` the place point's depth: the sensor's noise grows with it). The first draw with the
-//!    most inliers wins, then the motion is refitted on its inliers and the inliers counted again.
+//! 2. RANSAC: [`RANSAC_ITERATIONS`] draws of three matches; a draw whose triangle's sides differ
+//!    between the two views by more than the inlier distance cannot be rigid and is dropped
+//!    unsolved; the others give a motion by the triad construction (an orthonormal frame on
+//!    each triangle: about a hundred flops, against an SVD's thousands). A match is an inlier
+//!    when the motion brings its query point within `inlier_base_m + inlier_depth_ratio z` of the
+//!    place's (`z` the place point's depth: the sensor's noise grows with it). The first draw with
+//!    the most inliers wins, then the motion is refitted on its inliers by Horn/Umeyama
+//!    ([`align_rigid`]) and the inliers counted again.
 //! 3. Acceptance: at least `min_inliers` inliers, at least `min_inlier_ratio` of the matches, and
 //!    the inliers' pixels spread over at least `min_spread` of the frame's width and of its
 //!    height (points on one small patch fix a pose poorly and are the typical false match).
 
 use heapless::Vec;
-use nalgebra::Point3;
+use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::{Pose, align_rigid};
@@ -65,6 +69,40 @@ impl VerifyParams {
 /// A descriptor match: the query point, the place's point (each in its camera, metres) and the
 /// query point's pixel.
 type Match = (Point3<f32>, Point3<f32>, (f32, f32));
+
+/// The rigid motion taking the triangle `src` onto `dst` (query to place camera): the rotation
+/// between orthonormal frames built on each triangle (its first side, the normal, their cross
+/// product), the translation between the centroids. `None` for a triangle too thin to fix a
+/// frame, or sides that differ by more than the inlier distance at the place's depth.
+fn triad(src: [Point3<f32>; 3], dst: [Point3<f32>; 3], params: &VerifyParams) -> Option<Pose> {
+    let [a, b, c] = src;
+    let [a2, b2, c2] = dst;
+    let tol = params.inlier_base_m + params.inlier_depth_ratio * a2.z.max(b2.z).max(c2.z);
+    let len = |v: Vector3<f32>| ferroslam_fpu::sqrtf(v.norm_squared());
+    for (p, q) in [(b - a, b2 - a2), (c - a, c2 - a2), (c - b, c2 - b2)] {
+        if (len(p) - len(q)).abs() > tol {
+            return None;
+        }
+    }
+    let frame = |a: Point3<f32>, b: Point3<f32>, c: Point3<f32>| -> Option<Matrix3<f32>> {
+        let (u, w) = (b - a, c - a);
+        let n = u.cross(&w);
+        let (lu, ln) = (len(u), len(n));
+        // Sides of a few centimetres at least, and not collinear (sine above about 0.1).
+        if lu < 1e-2 || ln < 0.1 * lu * len(w) || ln <= 0.0 {
+            return None;
+        }
+        let e1 = u / lu;
+        let e3 = n / ln;
+        Some(Matrix3::from_columns(&[e1, e3.cross(&e1), e3]))
+    };
+    let r = frame(a2, b2, c2)? * frame(a, b, c)?.transpose();
+    // Orthonormal up to rounding: Shepperd's conversion, no iteration.
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    let centroid = |p: [Point3<f32>; 3]| (p[0].coords + p[1].coords + p[2].coords) / 3.0;
+    let t = centroid(dst) - rotation * centroid(src);
+    Some(Pose::from_parts(Translation3::from(t), rotation))
+}
 
 /// An accepted place.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -131,7 +169,7 @@ pub fn verify(
         let (Some(a), Some(b), Some(c)) = (matches.get(i), matches.get(j), matches.get(k)) else {
             continue;
         };
-        let Ok(t) = align_rigid(&[a.0, b.0, c.0], &[a.1, b.1, c.1]) else { continue };
+        let Some(t) = triad([a.0, b.0, c.0], [a.1, b.1, c.1], params) else { continue };
         let mask = inliers_of(&t);
         if mask.count_ones() > best_mask.count_ones() {
             best_mask = mask;

@@ -26,6 +26,7 @@ impl PoseMessage {
             (r.keyframe.is_some(), PoseFlags::KEYFRAME),
             (r.guide_stage.is_recovery(), PoseFlags::RECOVERY),
             (r.reinitialized, PoseFlags::REINITIALIZED),
+            (r.relocalized, PoseFlags::RELOCALIZED),
         ] {
             if on {
                 flags |= bit;
@@ -52,6 +53,8 @@ impl StatusMessage {
             frames: stats.frames,
             tracked_frames: stats.tracked_frames,
             lost_frames: stats.lost_frames,
+            reinitializations: stats.reinitializations,
+            relocalizations: stats.relocalizations,
             keyframes: stats.keyframes,
             recoveries: stats.bank_recoveries,
             faults,

@@ -62,9 +62,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         let mut used: FeatureSet = [0; FEATURE_WORDS];
         self.work.detected = true;
         let hessian = HessianParams { octaves, ..self.params.hessian };
-        let detection = &mut self.detection;
-        let detected =
-            detection.detector.detect(&frame.gray, &hessian, &mut detection.features).is_ok();
+        let detected = self.detection.detect(frame, &hessian);
         let reacquired = if detected && inliers.is_some() && self.params.map_reuse {
             self.reacquire(frame, cam, map, kf, t_cw, &mut used)
         } else {
@@ -107,11 +105,9 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         places: &mut impl Places,
     ) -> Option<Pose> {
         self.work.detected = true;
-        let detection = &mut self.detection;
-        detection
-            .detector
-            .detect(&frame.gray, &self.params.hessian, &mut detection.features)
-            .ok()?;
+        if !self.detection.detect(frame, &self.params.hessian) {
+            return None;
+        }
         let mut points: Vec<QueryPoint, QUERY_POINTS> = Vec::new();
         for f in &self.detection.features {
             let Some(z) = landmark_depth(frame, cam, f, &self.params) else { continue };

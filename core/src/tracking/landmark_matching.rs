@@ -85,6 +85,16 @@ pub(super) struct MatchSummary {
     pub estimate: Option<PoseEstimate>,
 }
 
+/// Whether [`Frontend::match_landmarks`] runs the affine bank: last, as [`ATTEMPTS`] says; not
+/// at all (a place memory is asked first, the cheaper re-acquisition); or alone (after the place
+/// memory found nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Bank {
+    Last,
+    Skip,
+    Only,
+}
+
 /// How one landmark is matched: the predicted-warp patch tracker, or the affine bank.
 #[derive(Clone, Copy)]
 enum Matcher<'a> {
@@ -117,6 +127,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         cam: &PinholeCamera,
         map: &Map<K, L>,
         predicted_t_cw: &Pose,
+        bank: Bank,
     ) -> MatchSummary {
         let p = self.params;
         // Counts are at most 512: exact in f32.
@@ -134,6 +145,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             let stage = match attempt {
                 Attempt::Guides(stage, _) | Attempt::Prediction(stage) => stage,
             };
+            let is_bank = stage == GuideStage::AffineBank;
+            if (bank == Bank::Skip && is_bank) || (bank == Bank::Only && !is_bank) {
+                continue;
+            }
             let prediction = if stage == GuideStage::SmallImageRotation {
                 let r =
                     *rotated.get_or_insert_with(|| self.rotation_prediction(cam, predicted_t_cw));

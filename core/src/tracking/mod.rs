@@ -51,10 +51,11 @@
 //!    observations, re-anchors the landmarks whose templates are too warped, and turns the
 //!    detected Hessian features with valid depth that are not near an inlier into new landmarks
 //!    (see `keyframe.rs`).
-//! 7. Loss: when tracking fails (too few matches or inliers, no pose), the frame first asks the
-//!    place memory ([`Places`], given to [`Frontend::process_with`]; `crate::loops` implements
-//!    it) where it is: features are detected, and a remembered place or a keyframe of the active
-//!    map that geometric verification accepts gives the pose. Tracking then restarts from a
+//! 7. Loss: when the attempts before the affine bank give no pose, a frame given a place memory
+//!    ([`Places`], through [`Frontend::process_with`]; `crate::loops` implements it) asks it where
+//!    it is before the bank (the costliest attempt, which then runs only when no place is
+//!    verified): features are detected, and a remembered place or a keyframe of the active map
+//!    that geometric verification accepts gives the pose. Tracking then restarts from a
 //!    keyframe made there, in the map's frame ([`FrameOutcome::Relocalized`]; the output may jump,
 //!    and says so). Otherwise the frame is [`FrontendState::Lost`] and its output is the
 //!    prediction with `tracked == false`. The next frame is tried against the local map (and the

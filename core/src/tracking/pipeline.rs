@@ -2,6 +2,7 @@
 //! of [`Frontend::process`]: tracking the local map, or starting (again) from a keyframe.
 
 use super::keyframe_rule::KeyframeDecision;
+use super::landmark_matching::Bank;
 use super::places::Places;
 use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
 use super::tracker::FrameTracker;
@@ -64,7 +65,28 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         predicted_t_cw: &Pose,
     ) -> FrameResult {
         let was_lost = self.recent.state == FrontendState::Lost;
-        let summary = self.match_landmarks(frame, cam, map, predicted_t_cw);
+        // With a place memory, a frame no cheaper attempt tracked asks it before the affine bank
+        // (the costliest attempt); the bank runs when no place is verified.
+        let relocalizes = places.relocalizes();
+        let bank = if relocalizes { Bank::Skip } else { Bank::Last };
+        let mut summary = self.match_landmarks(frame, cam, map, predicted_t_cw, bank);
+        if summary.estimate.is_none() && relocalizes {
+            if let Some(t_cw) = self.query_places(frame, cam, map, places) {
+                let r = self.initialize(frame, cam, map, places, &t_cw);
+                if r.keyframe.is_some() {
+                    return FrameResult {
+                        reinitialized: false,
+                        relocalized: true,
+                        matches: summary.matches,
+                        guide_matches: summary.guides,
+                        ..r
+                    };
+                }
+            }
+            let guides = summary.guides;
+            summary = self.match_landmarks(frame, cam, map, predicted_t_cw, Bank::Only);
+            summary.guides = summary.guides.max(guides);
+        }
         // The inlier mask indexes the scratch: it must hold the winning final stage.
         debug_assert!(
             summary.estimate.is_none() || summary.matches == self.scratch.correspondences.len(),
@@ -90,23 +112,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);
         }
         let Some(est) = summary.estimate else {
-            let found = if places.relocalizes() {
-                self.query_places(frame, cam, map, places)
-            } else {
-                None
-            };
-            if let Some(t_cw) = found {
-                let r = self.initialize(frame, cam, map, places, &t_cw);
-                if r.keyframe.is_some() {
-                    return FrameResult {
-                        reinitialized: false,
-                        relocalized: true,
-                        matches: summary.matches,
-                        guide_matches: summary.guides,
-                        ..r
-                    };
-                }
-            }
             if was_lost {
                 let r = self.initialize(frame, cam, map, places, predicted_t_cw);
                 return FrameResult {

@@ -13,7 +13,7 @@ use super::result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
 };
 use crate::config::{REFERENCE_WIDTH_PX, capacity, pixel_scale};
-use crate::features::{FeatureVec, HessianDetector};
+use crate::features::{FeatureVec, HessianDetector, HessianParams};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::grid_spread::Candidate;
@@ -232,17 +232,33 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     }
 }
 
-/// The detector and the features it found in the last keyframe's frame.
+/// The detector and the features it found in the last keyframe's frame (or lost frame's).
 #[derive(Debug, Clone)]
 pub(super) struct Detection<const W: usize> {
     pub(super) detector: HessianDetector<W>,
     /// The last detection's features (map reuse reads them too).
     pub(super) features: FeatureVec,
+    /// What `features` were detected on: the frame's timestamp bits and the parameters (`None`
+    /// after a failed detection).
+    of: Option<(u64, HessianParams)>,
 }
 
 impl<const W: usize> Detection<W> {
     pub(super) const fn new() -> Self {
-        Self { detector: HessianDetector::new(), features: FeatureVec::new() }
+        Self { detector: HessianDetector::new(), features: FeatureVec::new(), of: None }
+    }
+
+    /// Detects features of `frame` with `params` into `features`, unless they already hold that
+    /// detection (a relocalized frame's query detected them; the keyframe it makes reuses them:
+    /// the same bits for half the cost). Returns whether `features` hold the detection.
+    pub(super) fn detect(&mut self, frame: &RgbdFrame<'_>, params: &HessianParams) -> bool {
+        let of = Some((frame.timestamp_s.to_bits(), *params));
+        if self.of == of {
+            return true;
+        }
+        let ok = self.detector.detect(&frame.gray, params, &mut self.features).is_ok();
+        self.of = if ok { of } else { None };
+        ok
     }
 }
 

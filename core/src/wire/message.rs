@@ -52,6 +52,9 @@ impl PoseFlags {
     /// Tracking restarted at this frame from a new keyframe after a loss (the trajectory is
     /// continuous but not corrected across it).
     pub const REINITIALIZED: u8 = 1 << 3;
+    /// Tracking restarted at this frame in a remembered place that geometric verification
+    /// accepted: the pose is in the map's frame and may jump from the previous frame's.
+    pub const RELOCALIZED: u8 = 1 << 4;
 
     /// Whether every bit of `flag` is set.
     pub const fn contains(self, flag: u8) -> bool {
@@ -102,6 +105,10 @@ pub struct StatusMessage {
     pub tracked_frames: u32,
     /// Frames in the lost state.
     pub lost_frames: u32,
+    /// Frames where tracking restarted at the predicted pose after a loss.
+    pub reinitializations: u32,
+    /// Frames where tracking restarted in a verified remembered place.
+    pub relocalizations: u32,
     /// Keyframes made.
     pub keyframes: u32,
     /// Frames that took the recovery path ([`PoseFlags::RECOVERY`]).

@@ -52,12 +52,14 @@ pub use message::{
 /// - 1: the first schema.
 /// - 2: [`CostMessage`] times the front end and the back-end step apart (`frontend_ticks`,
 ///   `backend_ticks`, replacing version 1's `process_ticks`).
-pub const SCHEMA_VERSION: u8 = 2;
+/// - 3: [`StatusMessage`] counts re-initialisations and relocalizations; [`PoseFlags::RELOCALIZED`]
+///   marks a relocalized frame.
+pub const SCHEMA_VERSION: u8 = 3;
 
 /// Bytes of the CRC at the end of a payload.
 pub const CRC_BYTES: usize = 4;
 
-/// The longest payload (version, body, CRC), bytes. The longest message of version 2, a
+/// The longest payload (version, body, CRC), bytes. The longest message of version 3, a
 /// [`PoseMessage`], is under 60.
 pub const MAX_PAYLOAD: usize = 128;
 

@@ -49,6 +49,8 @@ fn all_kinds() -> [Message; 4] {
             frames: 60,
             tracked_frames: 59,
             lost_frames: 1,
+            reinitializations: 1,
+            relocalizations: 3,
             keyframes: 4,
             recoveries: 2,
             faults: 0,

@@ -77,7 +77,7 @@ pub struct SlamArgs {
           value_parser = clap::value_parser!(u8).range(1..))]
     pub window_levels: u8,
     /// Forget the keyframes that leave the map (SLAM mode): no long-term store, no
-    /// relocalization in a remembered place (the firmware's behaviour until its flash store).
+    /// relocalization in a remembered place (the behaviour before issue 47).
     #[arg(long)]
     pub no_places: bool,
 }

@@ -67,22 +67,14 @@ pub enum TrackMode {
 
 impl TrackMode {
     /// SLAM with the board's defaults: the firmware's quota, threaded schedule, board map and
-    /// window levels (what `replay --mode slam` runs unless told otherwise).
+    /// window levels, with the place memory (what `replay --mode slam` runs unless told
+    /// otherwise).
     pub const SLAM: Self = Self::Slam {
         quota: ferroslam_core::config::DEFAULT_BACKEND_QUOTA,
         schedule: Schedule::Threaded,
         map: MapScale::Board,
         window_levels: BackendParams::DEFAULT.window_levels,
         places: true,
-    };
-
-    /// What the firmware runs: [`Self::SLAM`] without the place memory (the firmware has no
-    /// long-term store yet), so a host replay of its frames gives its bits.
-    pub const FIRMWARE: Self = match Self::SLAM {
-        Self::Slam { quota, schedule, map, window_levels, .. } => {
-            Self::Slam { quota, schedule, map, window_levels, places: false }
-        }
-        Self::Odometry => Self::Odometry,
     };
 
     /// The mode's name in reports and on the command line: `odometry` or `slam`.

@@ -6,10 +6,15 @@ use cortex_m as _;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use defmt_semihosting as _;
+use ferroslam_core::config::capacity::{BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::map::FlashStore;
+use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message, PoseFlags};
 use ferroslam_firmware::cmsdk_uart::CmsdkUart;
+use ferroslam_firmware::flash_region::RegionFlash;
 use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
 use ferroslam_firmware::semihost_source::{SemihostFrames, SourceError};
 use ferroslam_firmware::semihosting::{SemihostingError, command_line};
@@ -17,6 +22,17 @@ use ferroslam_firmware::serial::{SerialError, SerialLink};
 use ferroslam_firmware::stack;
 use ferroslam_firmware::stream::HalfFrame;
 use ferroslam_firmware::systick::{SysTickClock, on_systick_wrap};
+
+/// Bytes of the long-term store: the board's record count of 1 KiB records (512 KiB).
+const STORE_BYTES: usize = BOARD_STORE_KEYFRAMES * PLACE_RECORD_BYTES;
+
+/// The long-term store's bytes, in the region standing for the board's flash
+/// (memory-qemu-mps2.x): neither RAM nor the load image. Taken once by `main`.
+#[unsafe(link_section = ".place_store")]
+static mut PLACE_STORE: [u8; STORE_BYTES] = [0xFF; STORE_BYTES];
+
+/// The place memory over the flash region's store.
+type BoardPlaces = PlaceMemory<FlashStore<RegionFlash<'static>>>;
 
 /// Instructions per SysTick tick under QEMU `-icount shift=0` (1 GHz virtual instruction clock,
 /// 25 MHz SysTick).
@@ -67,12 +83,17 @@ fn main() -> ! {
     static mut PIPELINE: Pipeline = Pipeline::new();
     stack::paint();
     let (store, pipeline) = (STORE, PIPELINE);
+    // SAFETY: `main` runs once and is the only code that names PLACE_STORE, so this is the one
+    // reference to it, for the rest of the program.
+    let place_store: &'static mut [u8] = unsafe { &mut *core::ptr::addr_of_mut!(PLACE_STORE) };
     defmt::info!(
         "ferroslam qemu-mps2: statics {} B frame store + {} B pipeline",
         core::mem::size_of::<HalfFrame>(),
         core::mem::size_of::<Pipeline>()
     );
-    let status = match run(store, pipeline) {
+    let places =
+        PlaceMemory::new(FlashStore::new(RegionFlash::new(place_store)), SLAM_FRONTEND.rng_seed);
+    let status = match run(store, pipeline, places) {
         Ok(()) => EXIT_SUCCESS,
         Err(e) => {
             defmt::error!("replay failed: {}", e);
@@ -83,7 +104,11 @@ fn main() -> ! {
 }
 
 /// Streams every recorded frame through the pipeline and out of UART0, then sends the status.
-fn run(store: &'static mut HalfFrame, pipeline: &'static mut Pipeline) -> Result<(), Failure> {
+fn run(
+    store: &'static mut HalfFrame,
+    pipeline: &'static mut Pipeline,
+    mut places: BoardPlaces,
+) -> Result<(), Failure> {
     let mut line = [0u8; 512];
     let args = parse_args(command_line(&mut line).map_err(Failure::CommandLine)?)?;
     defmt::info!("frames: {=str}", args.frames);
@@ -103,9 +128,16 @@ fn run(store: &'static mut HalfFrame, pipeline: &'static mut Pipeline) -> Result
     };
     let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
     loop {
-        let outcome =
-            run_frame(&mut source, pipeline, &args.cam, &mut link, &mut clock, SourceError::code)
-                .map_err(Failure::Link)?;
+        let outcome = run_frame(
+            &mut source,
+            pipeline,
+            &mut places,
+            &args.cam,
+            &mut link,
+            &mut clock,
+            SourceError::code,
+        )
+        .map_err(Failure::Link)?;
         match outcome {
             FrameOutcome::Processed { pose, cost } => defmt::info!(
                 "frame {}: {} inliers, {} matches, tracked {}, keyframe {}; ticks: acquire {}, \

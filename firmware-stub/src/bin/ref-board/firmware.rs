@@ -8,6 +8,7 @@ use cortex_m as _;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::tracking::NoPlaces;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message};
 use ferroslam_firmware::camera::{CameraConfig, CameraError, FifoPort, RgbdCamera};
 use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
@@ -86,7 +87,9 @@ fn main() -> ! {
     let mut clock = CycleClock::start(core.DCB, core.DWT);
     loop {
         let code = |e: &CameraError<_, _, _>| e.code();
-        match run_frame(&mut camera, pipeline, &cam, &mut link, &mut clock, code) {
+        // No place memory yet: the H743's flash erases 128 KiB sectors, which the long-term store
+        // cannot take record by record (its log on flash is issue 48's).
+        match run_frame(&mut camera, pipeline, &mut NoPlaces, &cam, &mut link, &mut clock, code) {
             Ok(FrameOutcome::Processed { .. } | FrameOutcome::Fault(_)) => {}
             // A camera never ends; a dead link leaves nothing to report to.
             Ok(FrameOutcome::End) | Err(_) => halt(),

@@ -1,0 +1,125 @@
+//! A memory region that behaves as NOR flash ([`RegionFlash`]): the QEMU board's stand-in for the
+//! reference board's flash, where the long-term store of remembered keyframes lives
+//! (`ferroslam_core::map::FlashStore`). Its region is linked apart from RAM (section
+//! `.place_store`), so the RAM budget does not pay for memory of the past.
+//!
+//! NOR semantics, faithfully: erasing sets a sector's bytes to `0xFF`; programming can only clear
+//! bits (a byte becomes `old & new`), so a write over an unerased slot corrupts it as real flash
+//! would, and the store's checksum catches it.
+
+use embedded_storage::nor_flash::{
+    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+
+/// Sector size, bytes: one long-term store record.
+pub const SECTOR_BYTES: usize = 1024;
+
+/// A region of bytes standing for NOR flash (see the module documentation).
+#[derive(Debug)]
+pub struct RegionFlash<'a> {
+    bytes: &'a mut [u8],
+}
+
+impl<'a> RegionFlash<'a> {
+    /// The flash over `bytes` (its length a multiple of [`SECTOR_BYTES`]; a remainder is not
+    /// used). Its content is taken as is: the store erases a slot before writing it.
+    pub fn new(bytes: &'a mut [u8]) -> Self {
+        let usable = bytes.len() - bytes.len() % SECTOR_BYTES;
+        let (bytes, _) = bytes.split_at_mut(usable);
+        Self { bytes }
+    }
+
+    /// The region's bytes, as written (the host reads them back to compare).
+    pub fn bytes(&self) -> &[u8] {
+        self.bytes
+    }
+
+    /// The bytes `offset..offset + len`, when the region holds them.
+    fn span(&mut self, offset: u32, len: usize) -> Result<&mut [u8], RegionError> {
+        let from = usize::try_from(offset).map_err(|_| RegionError::OutOfBounds)?;
+        let to = from.checked_add(len).ok_or(RegionError::OutOfBounds)?;
+        self.bytes.get_mut(from..to).ok_or(RegionError::OutOfBounds)
+    }
+}
+
+/// Why a [`RegionFlash`] operation failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RegionError {
+    /// Outside the region.
+    OutOfBounds,
+    /// An erase not on sector boundaries, or a write not on word boundaries.
+    NotAligned,
+}
+
+impl NorFlashError for RegionError {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            Self::OutOfBounds => NorFlashErrorKind::OutOfBounds,
+            Self::NotAligned => NorFlashErrorKind::NotAligned,
+        }
+    }
+}
+
+impl ErrorType for RegionFlash<'_> {
+    type Error = RegionError;
+}
+
+impl ReadNorFlash for RegionFlash<'_> {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        bytes.copy_from_slice(self.span(offset, bytes.len())?);
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        self.bytes.len()
+    }
+}
+
+impl NorFlash for RegionFlash<'_> {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SECTOR_BYTES;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let aligned = |x: u32| (x as usize).is_multiple_of(SECTOR_BYTES);
+        if !aligned(from) || !aligned(to) || to < from {
+            return Err(RegionError::NotAligned);
+        }
+        self.span(from, (to - from) as usize)?.fill(0xFF);
+        Ok(())
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        if !(offset as usize).is_multiple_of(Self::WRITE_SIZE)
+            || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
+        {
+            return Err(RegionError::NotAligned);
+        }
+        for (cell, &b) in self.span(offset, bytes.len())?.iter_mut().zip(bytes) {
+            *cell &= b;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn behaves_as_nor_flash() {
+        let mut backing = [0u8; 2 * SECTOR_BYTES + 5];
+        let mut f = RegionFlash::new(&mut backing);
+        assert_eq!(f.capacity(), 2 * SECTOR_BYTES);
+        f.erase(0, SECTOR_BYTES as u32).unwrap();
+        f.write(0, &[0xF0, 0x0F, 0xAA, 0x55]).unwrap();
+        f.write(0, &[0xCC; 4]).unwrap();
+        let mut out = [0; 4];
+        f.read(0, &mut out).unwrap();
+        assert_eq!(out, [0xC0, 0x0C, 0x88, 0x44], "programming only clears bits");
+        assert_eq!(f.erase(1, 1024), Err(RegionError::NotAligned));
+        assert_eq!(f.write(2, &[0; 4]), Err(RegionError::NotAligned));
+        assert_eq!(f.read(2 * SECTOR_BYTES as u32, &mut out), Err(RegionError::OutOfBounds));
+    }
+}
