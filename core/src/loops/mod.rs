@@ -245,8 +245,9 @@ enum Place {
 }
 
 /// What is remembered of keyframe `kf` of `map`: its pose, key and up to [`PLACE_POINTS`]
-/// observed landmarks with a descriptor, in its camera frame (in observation order: the tracked
-/// inliers, then the landmarks it made). `None` when it has fewer than [`MIN_RECORD_POINTS`] of
+/// observed landmarks with a descriptor, in its camera frame: first those it made (a descriptor
+/// is taken where its landmark is made, so theirs describe this view), then the tracked ones it
+/// observed, each in observation order. `None` when it has fewer than [`MIN_RECORD_POINTS`] of
 /// them (or is not in the map).
 fn record_of<const K: usize, const L: usize>(
     map: &Map<K, L>,
@@ -255,11 +256,17 @@ fn record_of<const K: usize, const L: usize>(
     let k = map.keyframe(kf)?;
     let t_cw = k.t_wc.inverse();
     let mut points: Vec<PlacePoint, PLACE_POINTS> = Vec::new();
-    for obs in &k.observations {
-        let Some(lm) = map.landmark(obs.landmark) else { continue };
-        let Some(descriptor) = lm.descriptor else { continue };
-        if points.push(PlacePoint { p_c: t_cw * lm.p_w, descriptor }).is_err() {
-            break;
+    // The landmarks it made first: their descriptors were taken in its own view.
+    for own in [true, false] {
+        for obs in &k.observations {
+            let Some(lm) = map.landmark(obs.landmark) else { continue };
+            let Some(descriptor) = lm.descriptor else { continue };
+            if (lm.host == kf) != own {
+                continue;
+            }
+            if points.push(PlacePoint { p_c: t_cw * lm.p_w, descriptor }).is_err() {
+                break;
+            }
         }
     }
     (points.len() >= MIN_RECORD_POINTS).then_some(PlaceRecord {

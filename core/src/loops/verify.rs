@@ -53,14 +53,14 @@ pub struct VerifyParams {
 impl VerifyParams {
     /// The defaults: matches as strict as map reuse's (a different view of the same point stays
     /// within about 12 of 64 bits; unrelated points differ by about 32), inliers within the
-    /// depth noise of a Kinect-class sensor, and at least 15 inliers spread over a quarter of
+    /// depth noise of a Kinect-class sensor, and at least 10 inliers spread over a quarter of
     /// the frame each way.
     pub const DEFAULT: Self = Self {
         max_descriptor_distance: 14,
         descriptor_margin: 4,
         inlier_base_m: 0.03,
         inlier_depth_ratio: 0.02,
-        min_inliers: 15,
+        min_inliers: 10,
         min_inlier_ratio: 0.4,
         min_spread: 0.25,
     };

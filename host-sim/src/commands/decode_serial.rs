@@ -94,11 +94,16 @@ fn print_table(mut out: impl std::io::Write, messages: &[Message]) -> std::io::R
             TrackingState::Tracking => "tracking",
             TrackingState::Lost => "lost",
         };
-        let flags: String =
-            [(PoseFlags::TRACKED, 'T'), (PoseFlags::KEYFRAME, 'K'), (PoseFlags::RECOVERY, 'R')]
-                .iter()
-                .map(|&(bit, c)| if p.flags.contains(bit) { c } else { '-' })
-                .collect();
+        let flags: String = [
+            (PoseFlags::TRACKED, 'T'),
+            (PoseFlags::KEYFRAME, 'K'),
+            (PoseFlags::RECOVERY, 'R'),
+            (PoseFlags::REINITIALIZED, 'I'),
+            (PoseFlags::RELOCALIZED, 'L'),
+        ]
+        .iter()
+        .map(|&(bit, c)| if p.flags.contains(bit) { c } else { '-' })
+        .collect();
         let [x, y, z] = p.translation_m;
         let cost = cost.map_or_else(|| "-".to_owned(), |c| c.to_string());
         writeln!(
