@@ -4,7 +4,7 @@
 //!
 //! [`PlaceMemory`] implements the front end's port ([`crate::tracking::Places`]):
 //! - **Remember** (a keyframe leaving the map): its pose, place key and up to
-//!   [`PLACE_POINTS`](crate::config::capacity::PLACE_POINTS) observed landmarks with a descriptor
+//!   [`PLACE_POINTS`] observed landmarks with a descriptor
 //!   (in its camera frame) become a [`PlaceRecord`] in the next free slot. A full store thins
 //!   itself: the new record replaces the stored one nearest to it in pose (the most redundant),
 //!   never failing and never growing.
@@ -16,9 +16,10 @@
 //!   ambiguous scene: nothing is returned). A false relocalization is worse than a missed one.
 //!
 //! Cost: a query reads each record once and decodes [`CANDIDATES`] of them again; each
-//! verification is bounded by [`PLACE_POINTS`](crate::config::capacity::PLACE_POINTS) x the
-//! query's points descriptor comparisons and [`verify::RANSAC_ITERATIONS`] minimal solves.
-//! Deterministic: the RANSAC draws come from a generator seeded by the caller.
+//! verification is bounded by [`PLACE_POINTS`] x the
+//! query's points descriptor comparisons and [`RANSAC_ITERATIONS`] minimal solves.
+//! Deterministic: the RANSAC draws come from a generator seeded by the caller. Why this design:
+//! docs/decisions.md, "Place memory: what a keyframe leaves behind".
 
 mod verify;
 
@@ -33,7 +34,7 @@ use crate::map::{KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, Record
 use crate::pose::TrackingRng;
 use crate::tracking::{PlaceQuery, Places};
 
-pub use verify::{Verified, VerifyParams, verify};
+pub use verify::{RANSAC_ITERATIONS, Verified, VerifyParams, verify};
 
 /// Remembered places verified per query, the nearest by key.
 pub const CANDIDATES: usize = 3;
@@ -48,8 +49,8 @@ pub const AMBIGUITY_DISTANCE: f32 = 0.15;
 /// See [`AMBIGUITY_DISTANCE`].
 pub const AMBIGUITY_RATIO: f32 = 0.8;
 
-/// What the place memory did, counted since it was made.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// What the place memory did, counted since it was made (serializable for reports).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PlaceStats {
     /// Keyframes written to the store.

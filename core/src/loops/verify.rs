@@ -54,7 +54,7 @@ impl VerifyParams {
     /// The defaults: matches as strict as map reuse's (a different view of the same point stays
     /// within about 12 of 64 bits; unrelated points differ by about 32), inliers within the
     /// depth noise of a Kinect-class sensor, and at least 10 inliers spread over a quarter of
-    /// the frame each way.
+    /// the frame each way. Why: docs/decisions.md, "Geometric verification of a place".
     pub const DEFAULT: Self = Self {
         max_descriptor_distance: 14,
         descriptor_margin: 4,

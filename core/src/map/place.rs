@@ -43,7 +43,8 @@ const _: () = assert!(HEADER_BYTES + PLACE_POINTS * POINT_BYTES <= CHECKSUM_AT);
 /// A keyframe's place key: its image reduced to 16 x 12 cell means (gray levels), compared
 /// zero-mean so that a global brightness change does not matter. A whole-image key in the
 /// manner of PTAM's small blurry images (Klein and Murray 2008): a revisit seen from about the
-/// same viewpoint ranks first, and geometric verification decides.
+/// same viewpoint ranks first, and geometric verification decides. Why: docs/decisions.md, "Place
+/// key: a 16 x 12 thumbnail".
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct PlaceKey(pub [u8; PLACE_KEY_CELLS]);
 

@@ -66,7 +66,8 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     ) -> FrameResult {
         let was_lost = self.recent.state == FrontendState::Lost;
         // With a place memory, a frame no cheaper attempt tracked asks it before the affine bank
-        // (the costliest attempt); the bank runs when no place is verified.
+        // (the costliest attempt); the bank runs when no place is verified. Why: docs/decisions.md,
+        // "Relocalization before the affine bank".
         let relocalizes = places.relocalizes();
         let bank = if relocalizes { Bank::Skip } else { Bank::Last };
         let mut summary = self.match_landmarks(frame, cam, map, predicted_t_cw, bank);

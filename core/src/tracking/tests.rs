@@ -209,8 +209,13 @@ fn black_frames_and_missing_depth_never_panic() {
     let st = fe.stats();
     let tally = (st.initializing_frames, st.tracked_frames, st.lost_frames, st.reinitializations);
     assert_eq!(tally, (2, 1, 3, 1), "{st:?}");
+    assert_eq!(st.relocalizations, 0, "no place memory: nothing relocalizes");
     assert_eq!(
-        st.tracked_frames + st.reinitializations + st.lost_frames + st.initializing_frames,
+        st.tracked_frames
+            + st.reinitializations
+            + st.relocalizations
+            + st.lost_frames
+            + st.initializing_frames,
         7
     );
 }

@@ -1,5 +1,6 @@
 //! What a run gives back: the trajectories, per-frame figures and the back end's record.
 
+use ferroslam_core::loops::PlaceStats;
 use ferroslam_core::tracking::{FrameResult, FrontendState, GuideStage};
 use serde::Serialize;
 
@@ -49,20 +50,10 @@ pub struct PlacesReport {
     pub store_capacity: usize,
     /// Records it held at the end.
     pub stored: usize,
-    /// Keyframes written to it as they left the map.
-    pub remembered: u32,
-    /// Of those, written over a redundant record of a full store.
-    pub thinned: u32,
-    /// Keyframes that left the map with too few verification points to be remembered.
-    pub too_few_points: u32,
-    /// Failed reads or writes, and records that did not decode.
-    pub store_errors: u32,
-    /// Queries of frames the front end could not track.
-    pub queries: u32,
-    /// Candidate places that passed geometric verification.
-    pub verified: u32,
-    /// Queries refused because two places verified different poses.
-    pub ambiguous: u32,
+    /// The place memory's counters (`remembered`, `thinned`, `too_few_points`, `store_errors`,
+    /// `queries`, `verified`, `relocalized`, `ambiguous`: see `loops::PlaceStats`).
+    #[serde(flatten)]
+    pub stats: PlaceStats,
     /// The frames (0-based, in the order played) that relocalized.
     pub relocalized_frames: Vec<usize>,
 }

@@ -209,19 +209,12 @@ impl<P: ProfileTypes> Stepper<'_, P> {
 /// What the place memory did over a run; the relocalized frames by their index in the order
 /// played.
 fn places_report(memory: &HostPlaces, per_frame: &[TrackedFrame]) -> PlacesReport {
-    let s = memory.stats();
     let frames: Vec<usize> =
         per_frame.iter().enumerate().filter(|(_, f)| f.relocalized).map(|(i, _)| i).collect();
     PlacesReport {
         store_capacity: BOARD_STORE_KEYFRAMES,
         stored: memory.len(),
-        remembered: s.remembered,
-        thinned: s.thinned,
-        too_few_points: s.too_few_points,
-        store_errors: s.store_errors,
-        queries: s.queries,
-        verified: s.verified,
-        ambiguous: s.ambiguous,
+        stats: memory.stats(),
         relocalized_frames: frames,
     }
 }
