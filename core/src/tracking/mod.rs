@@ -58,9 +58,10 @@
 //!    that geometric verification accepts gives the pose. Tracking then restarts from a
 //!    keyframe made there, in the map's frame ([`FrameOutcome::Relocalized`]; the output may jump,
 //!    and says so). Otherwise the frame is [`FrontendState::Lost`] and its output is the
-//!    prediction with `tracked == false`. The next frame is tried against the local map (and the
-//!    place memory) first; if that fails too, the local map is emptied and a keyframe is made at
-//!    that frame's predicted pose (the trajectory stays continuous, with whatever drift the
+//!    prediction with `tracked == false`. The next frames are tried against the local map (and the
+//!    place memory) first; when one fails too (with a place memory: after
+//!    [`RELOCALIZE_FRAMES`] lost frames in a row), the local map is
+//!    emptied and a keyframe is made at that frame's predicted pose (the trajectory stays continuous, with whatever drift the
 //!    prediction has), and tracking resumes from it. Its [`FrameResult::tracked`] is `false` and
 //!    [`FrameResult::reinitialized`] `true`.
 //!
@@ -99,6 +100,7 @@ pub use local_map::{
     BoardLocalMap, Insertions, LocalMap, PATCH_SIDE, TrackedLandmark, induced_affine,
 };
 pub use params::FrontendParams;
+pub use pipeline::RELOCALIZE_FRAMES;
 pub use places::{NoPlaces, PlaceQuery, Places, QueryPoint};
 pub use result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,

@@ -4,6 +4,11 @@
 use super::keyframe_rule::KeyframeDecision;
 use super::landmark_matching::Bank;
 use super::places::Places;
+
+/// Frames in a row a front end with a place memory stays lost, asking it, before it restarts
+/// tracking at the prediction (1 without one: the frame after a loss restarts). Why:
+/// docs/decisions.md, "Five lost frames ask before tracking restarts".
+pub const RELOCALIZE_FRAMES: u32 = 5;
 use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
 use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
@@ -64,7 +69,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         places: &mut impl Places,
         predicted_t_cw: &Pose,
     ) -> FrameResult {
-        let was_lost = self.recent.state == FrontendState::Lost;
+        // With a place memory, the frames after a loss keep asking it before tracking restarts
+        // at a prediction: a known place found late is better than a new map built off it.
+        let lost_enough = if places.relocalizes() { RELOCALIZE_FRAMES } else { 1 };
+        let was_lost = self.recent.lost_run >= lost_enough;
         // With a place memory, a frame no cheaper attempt tracked asks it before the affine bank
         // (the costliest attempt); the bank runs when no place is verified. Why: docs/decisions.md,
         // "Relocalization before the affine bank".

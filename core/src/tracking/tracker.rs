@@ -55,6 +55,8 @@ pub(super) struct Recent {
     pub(super) last: Option<(f64, Pose)>,
     /// The last frame's pose inliers (0 when it was not tracked).
     pub(super) inliers: usize,
+    /// Frames lost in a row up to the last one.
+    pub(super) lost_run: u32,
     /// Constant-velocity prediction from the tracked poses.
     pub(super) motion: MotionModel,
     /// This frame and the previous one as small blurry images (the rotation's re-estimate).
@@ -68,6 +70,7 @@ impl Recent {
             state: FrontendState::Initializing,
             last: None,
             inliers: 0,
+            lost_run: 0,
             motion: MotionModel::new(),
             small_current: SmallImage::new(),
             small_previous: SmallImage::new(),
@@ -94,6 +97,8 @@ impl Recent {
         self.state = result.state;
         self.last = Some((timestamp_s, result.t_wc.inverse()));
         self.inliers = result.inliers;
+        self.lost_run =
+            if result.state == FrontendState::Lost { self.lost_run.saturating_add(1) } else { 0 };
         core::mem::swap(&mut self.small_current, &mut self.small_previous);
     }
 }
