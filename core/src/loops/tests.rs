@@ -223,3 +223,29 @@ fn a_full_store_replaces_its_most_redundant_record() {
     memory.remember(&map, kf);
     assert_eq!(memory.stats().too_few_points, 1);
 }
+
+#[test]
+fn a_place_with_a_moved_part_is_refused_unless_the_part_is_small() {
+    let mut rng = TestRng::new(8);
+    let params = VerifyParams::DEFAULT;
+    let mut ransac = TrackingRng::new(9);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_rq = pose([0.05, 0.0, 0.1], [0.0, 0.05, 0.0]);
+    // The same room, the points from `moved` on shifted 0.6 m (furniture moved since).
+    let seen = |moved: usize, rng: &mut TestRng| {
+        let mut points = query_of(rng, &place, &t_rq, 2, 60);
+        for q in points.iter_mut().skip(60 + moved) {
+            q.p_c.x += 0.6;
+            q.uv = project(&q.p_c);
+        }
+        points
+    };
+    // Half moved: two rigid motions as strong as each other, no telling which is the camera's.
+    let half = seen(PLACE_POINTS / 2, &mut rng);
+    assert!(verify(&query(&half), &place, &params, &mut ransac).is_none());
+    // A quarter moved: the static three quarters give the camera's pose.
+    let quarter = seen(PLACE_POINTS * 3 / 4, &mut rng);
+    let v = verify(&query(&quarter), &place, &params, &mut ransac).unwrap();
+    let err = t_rq.inverse() * v.t_rq;
+    assert!(err.translation.vector.norm() < 5e-3, "{err}");
+}

@@ -16,6 +16,9 @@
 //! 3. Acceptance: at least `min_inliers` inliers, at least `min_inlier_ratio` of the matches, and
 //!    the inliers' pixels spread over at least `min_spread` of the frame's width and of its
 //!    height (points on one small patch fix a pose poorly and are the typical false match).
+//! 4. Ambiguity: RANSAC again on the matches the motion leaves out; a second motion with at least
+//!    `min_inliers` inliers and `max_rival` of the first's (part of the scene moved, or two
+//!    look-alike parts) refuses the place.
 
 use heapless::Vec;
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -48,6 +51,9 @@ pub struct VerifyParams {
     pub min_inlier_ratio: f32,
     /// Smallest extent of the inliers' pixels, as a fraction of the frame's width and height.
     pub min_spread: f32,
+    /// A second motion among the other matches with at least `min_inliers` inliers and this
+    /// fraction of the first's makes the place ambiguous (refused).
+    pub max_rival: f32,
 }
 
 impl VerifyParams {
@@ -63,6 +69,7 @@ impl VerifyParams {
         min_inliers: 10,
         min_inlier_ratio: 0.4,
         min_spread: 0.25,
+        max_rival: 0.5,
     };
 }
 
@@ -158,23 +165,8 @@ pub fn verify(
         }
         mask
     };
-    let mut best_mask = 0u64;
-    for _ in 0..RANSAC_ITERATIONS {
-        let i = rng.next_u32() as usize % n;
-        let j = rng.next_u32() as usize % n;
-        let k = rng.next_u32() as usize % n;
-        if i == j || j == k || i == k {
-            continue;
-        }
-        let (Some(a), Some(b), Some(c)) = (matches.get(i), matches.get(j), matches.get(k)) else {
-            continue;
-        };
-        let Some(t) = triad([a.0, b.0, c.0], [a.1, b.1, c.1], params) else { continue };
-        let mask = inliers_of(&t);
-        if mask.count_ones() > best_mask.count_ones() {
-            best_mask = mask;
-        }
-    }
+    let all = u64::MAX >> (64 - n);
+    let best_mask = ransac(&matches, all, params, rng, &inliers_of);
     let mut src: Vec<Point3<f32>, PLACE_POINTS> = Vec::new();
     let mut dst: Vec<Point3<f32>, PLACE_POINTS> = Vec::new();
     for (k, (q, r, _)) in matches.iter().enumerate() {
@@ -197,5 +189,57 @@ pub fn verify(
     let accepted = inliers >= params.min_inliers
         && inliers as f32 >= params.min_inlier_ratio * n as f32
         && spread;
-    accepted.then_some(Verified { t_rq, inliers, matches: n })
+    if !accepted {
+        return None;
+    }
+    // Another rigid motion among the matches this one leaves out: part of the scene moved, or two
+    // look-alike parts. Which one is the camera's cannot be told: refused.
+    let rest = all & !mask;
+    if rest.count_ones() as usize >= params.min_inliers {
+        let rival = (ransac(&matches, rest, params, rng, &inliers_of) & rest).count_ones();
+        if rival as usize >= params.min_inliers && rival as f32 >= params.max_rival * inliers as f32
+        {
+            return None;
+        }
+    }
+    Some(Verified { t_rq, inliers, matches: n })
+}
+
+/// The inlier mask of the best motion drawn from the matches in `allowed` ([`RANSAC_ITERATIONS`]
+/// draws of three; the first with the most inliers among all matches wins; 0 when none solved).
+fn ransac(
+    matches: &[Match],
+    allowed: u64,
+    params: &VerifyParams,
+    rng: &mut TrackingRng,
+    inliers_of: &impl Fn(&Pose) -> u64,
+) -> u64 {
+    let mut pool: Vec<u8, PLACE_POINTS> = Vec::new();
+    for k in 0..matches.len() {
+        if allowed & (1 << k) != 0 {
+            let _ = pool.push(k as u8);
+        }
+    }
+    let n = pool.len();
+    let mut best_mask = 0u64;
+    if n < 3 {
+        return best_mask;
+    }
+    let at = |r: u32| pool.get(r as usize % n).and_then(|&k| matches.get(usize::from(k)));
+    for _ in 0..RANSAC_ITERATIONS {
+        let (ri, rj, rk) = (rng.next_u32(), rng.next_u32(), rng.next_u32());
+        if ri as usize % n == rj as usize % n
+            || rj as usize % n == rk as usize % n
+            || ri as usize % n == rk as usize % n
+        {
+            continue;
+        }
+        let (Some(a), Some(b), Some(c)) = (at(ri), at(rj), at(rk)) else { continue };
+        let Some(t) = triad([a.0, b.0, c.0], [a.1, b.1, c.1], params) else { continue };
+        let mask = inliers_of(&t);
+        if mask.count_ones() > best_mask.count_ones() {
+            best_mask = mask;
+        }
+    }
+    best_mask
 }
