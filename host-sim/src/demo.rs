@@ -156,7 +156,7 @@ fn data_path(
     let baseline = simulated_odometry(gt, options.synth.seed);
     baseline.write_tum(&out.join("baseline_trajectory.txt"))?;
     let evaluation = eval::evaluate(gt, &baseline, eval::DEFAULT_MAX_DT_S)?;
-    plot::plot_report(&evaluation, &out.join("trajectory.svg"), &out.join("ate.svg"))?;
+    plot::plot_report(&evaluation, &out.join("trajectory.svg"), &out.join("ate.svg"), &[])?;
 
     let note = format!(
         "data path only: {} synthetic frames rendered at {}x{}, brought to {} ({}x{}) and \

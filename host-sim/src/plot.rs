@@ -123,12 +123,14 @@ fn padded_range(values: impl Iterator<Item = f64>, min_span: f64) -> (f64, f64) 
 
 /// Draws the ground truth and the aligned estimate (world positions of the camera, metres) seen
 /// from above, in the plane of their two largest extents ([`PlotPlane::of_largest_extent`]), both
-/// axes at the same scale, as an SVG file at `path`. Returns the plane drawn; the axis labels say
-/// which (`x [m]`, `z [m]`, ...).
+/// axes at the same scale, as an SVG file at `path`, with a circle on each of `marks` (estimate
+/// positions where tracking relocalized). Returns the plane drawn; the axis labels say which
+/// (`x [m]`, `z [m]`, ...).
 pub fn plot_trajectory_top_view(
     path: &Path,
     gt: &[Point3<f64>],
     est_aligned: &[Point3<f64>],
+    marks: &[Point3<f64>],
     title: &str,
 ) -> Result<PlotPlane, PlotError> {
     if gt.is_empty() && est_aligned.is_empty() {
@@ -174,6 +176,14 @@ pub fn plot_trajectory_top_view(
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
+    }
+    if !marks.is_empty() {
+        let mark = BLUE.stroke_width(2);
+        chart
+            .draw_series(marks.iter().map(|p| Circle::new((p[h], p[v]), 6, mark)))
+            .map_err(&err)?
+            .label("relocalized")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 6, mark));
     }
     chart
         .configure_series_labels()
@@ -235,11 +245,13 @@ pub fn plot_error_over_time(
 }
 
 /// Writes both plots of an evaluation: the top view of ground truth and aligned estimate to
-/// `top_view_svg`, the ATE of each match over time to `ate_svg`.
+/// `top_view_svg`, with the estimate's poses at the timestamps `relocalized_s` circled, and the
+/// ATE of each match over time to `ate_svg`.
 pub fn plot_report(
     report: &EvalReport,
     top_view_svg: &Path,
     ate_svg: &Path,
+    relocalized_s: &[f64],
 ) -> Result<(), PlotError> {
     let gt: Vec<Point3<f64>> =
         report.matches.iter().map(|m| Point3::from(m.gt.t_wc.translation.vector)).collect();
@@ -248,11 +260,17 @@ pub fn plot_report(
         .iter()
         .map(|m| Point3::from(m.est_aligned_t_wc.translation.vector))
         .collect();
+    let marks: Vec<Point3<f64>> = report
+        .matches
+        .iter()
+        .filter(|m| relocalized_s.contains(&m.est.timestamp_s))
+        .map(|m| Point3::from(m.est_aligned_t_wc.translation.vector))
+        .collect();
     let title = format!(
         "trajectory (ATE rmse {:.4} m, {} matched poses)",
         report.ate.rmse, report.matched_poses
     );
-    plot_trajectory_top_view(top_view_svg, &gt, &est, &title)?;
+    plot_trajectory_top_view(top_view_svg, &gt, &est, &marks, &title)?;
     let (times, errors) = report.ate_over_time();
     plot_error_over_time(ate_svg, &times, &errors, "absolute trajectory error (SE(3)-aligned)")
 }
@@ -284,12 +302,18 @@ mod tests {
         let (a, b) = (dir.path().join("a.svg"), dir.path().join("b.svg"));
         let gt = spiral(200, 1.0);
         let est = spiral(200, 1.02);
-        let plane = plot_trajectory_top_view(&a, &gt, &est, "top view").unwrap();
+        let plane = plot_trajectory_top_view(&a, &gt, &est, &[], "top view").unwrap();
         assert_eq!(plane, PlotPlane { horizontal: 0, vertical: 2 });
         let text = assert_svg_with_polyline(&a);
         assert!(text.contains("x [m]") && text.contains("z [m]"));
-        plot_trajectory_top_view(&b, &gt, &est, "top view").unwrap();
+        plot_trajectory_top_view(&b, &gt, &est, &[], "top view").unwrap();
         assert_eq!(text, std::fs::read_to_string(&b).unwrap());
+        // A relocalization is circled and named in the legend; without one, nothing is.
+        assert!(!text.contains("relocalized"));
+        let c = dir.path().join("c.svg");
+        plot_trajectory_top_view(&c, &gt, &est, &est[50..51], "top view").unwrap();
+        let marked = std::fs::read_to_string(&c).unwrap();
+        assert!(marked.contains("relocalized") && marked.matches("<circle").count() >= 2);
     }
 
     #[test]
@@ -316,7 +340,7 @@ mod tests {
             Err(PlotError::NonFinite { what: "error", index: 1, .. })
         ));
         assert!(matches!(
-            plot_trajectory_top_view(&p, &[], &[], "t"),
+            plot_trajectory_top_view(&p, &[], &[], &[], "t"),
             Err(PlotError::Empty { .. })
         ));
         let missing = dir.path().join("no/such/dir/x.svg");

@@ -188,6 +188,6 @@ fn calibration_note(dataset: &Dataset) -> String {
 fn plot_ground_truth(gt: &Trajectory, path: &Path) -> Result<()> {
     let gt: Vec<Point3<f64>> =
         gt.poses.iter().map(|p| Point3::from(p.t_wc.translation.vector)).collect();
-    plot::plot_trajectory_top_view(path, &gt, &[], "ground truth (no estimate yet)")?;
+    plot::plot_trajectory_top_view(path, &gt, &[], &[], "ground truth (no estimate yet)")?;
     Ok(())
 }

@@ -268,7 +268,9 @@ pub fn write_odometry(
         },
     };
     if let Some(e) = &evaluation {
-        plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
+        let relocalized: Vec<f64> =
+            run.per_frame.iter().filter(|f| f.relocalized).map(|f| f.timestamp_s).collect();
+        plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"), &relocalized)?;
     }
     // An online trajectory that cannot be evaluated (e.g. empty) has no ATE either.
     let online_ate = gt.and_then(|gt| evaluate(gt, &run.online).ok()).map(|e| e.ate.rmse);

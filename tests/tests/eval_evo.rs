@@ -146,7 +146,7 @@ fn report_renders_and_plots() -> Result<()> {
     assert!(json.get("matches").is_none());
     let dir = tempfile::tempdir().unwrap();
     let (top, ate) = (dir.path().join("trajectory.svg"), dir.path().join("ate.svg"));
-    plot::plot_report(&report, &top, &ate).unwrap();
+    plot::plot_report(&report, &top, &ate, &[]).unwrap();
     for path in [top, ate] {
         let svg = std::fs::read_to_string(&path).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("<polyline"), "{}", path.display());

@@ -74,7 +74,7 @@ fn run_eval(args: &EvalArgs) -> Result<()> {
     let report = eval::run_eval(&args.groundtruth, &args.estimate, args.max_dt)?;
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        plot::plot_report(&report, &dir.join("trajectory.svg"), &dir.join("ate.svg"))?;
+        plot::plot_report(&report, &dir.join("trajectory.svg"), &dir.join("ate.svg"), &[])?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
