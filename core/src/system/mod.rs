@@ -131,9 +131,9 @@ impl<P: ProfileTypes> Slam<P> {
     /// The front end with the map, and the back end's solve, borrowed apart for one frame: `Some`
     /// when the back end's next step is a solve step that cannot finish the solve within
     /// `work_quota` units. Then [`SolveJob::advance`]`(work_quota)` beside
-    /// [`FrameJob::process`] gives the same bits as [`Self::step_backend`]`(cam, work_quota)`
-    /// followed by [`Self::process`]. `None`: run those two in turn. Cost: one pass over the
-    /// solve's points.
+    /// [`FrameJob::process_with`] gives the same bits as [`Self::step_backend`]`(cam, work_quota)`
+    /// followed by [`Self::process_with`] with the same place memory. `None`: run those two in
+    /// turn. Cost: one pass over the solve's points.
     pub fn overlap(&mut self, work_quota: u32) -> Option<(FrameJob<'_, P>, SolveJob<'_>)> {
         self.tell_backend();
         let solve = self.backend.solve_job()?;
@@ -204,21 +204,9 @@ pub struct FrameJob<'a, P: ProfileTypes> {
 }
 
 impl<P: ProfileTypes> FrameJob<'_, P> {
-    /// Tracks one frame into the map (see
-    /// [`Frontend::process`](crate::tracking::Frontend::process)); a keyframe it makes is told to
-    /// the back end by the next [`Slam`] call that steps it.
-    ///
-    /// # Errors
-    /// As `Frontend::process`; nothing changes then.
-    pub fn process(
-        &mut self,
-        frame: &RgbdFrame<'_>,
-        cam: &PinholeCamera,
-    ) -> Result<FrameResult, FrontendError> {
-        self.process_with(frame, cam, &mut NoPlaces)
-    }
-
-    /// As [`Self::process`], with `places` as the place memory (see [`Slam::process_with`]).
+    /// Tracks one frame into the map with `places` as the place memory (see
+    /// [`Slam::process_with`]; [`NoPlaces`] for none); a keyframe it makes is told to the back
+    /// end by the next [`Slam`] call that steps it.
     ///
     /// # Errors
     /// As `Frontend::process`; nothing changes then.

@@ -16,9 +16,11 @@ use ferroslam_core::config::capacity::BOARD_STORE_KEYFRAMES;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::loops::PlaceMemory;
-use ferroslam_core::map::{KeyFrameId, RamStore};
+use ferroslam_core::map::{KeyFrameId, Map, RamStore};
 use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
-use ferroslam_core::tracking::{FrameResult, FrontendParams, FrontendState};
+use ferroslam_core::tracking::{
+    FrameResult, FrontendParams, FrontendState, NoPlaces, PlaceQuery, Places,
+};
 
 use super::data_path::{Progress, drive};
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
@@ -107,7 +109,7 @@ struct Relative {
 struct Stepper<'a, P: ProfileTypes> {
     slam: &'a mut Slam<P>,
     /// The place memory, when the run has one.
-    places: Option<&'a mut HostPlaces>,
+    places: &'a mut RunPlaces,
     cam: &'a PinholeCamera,
     quota: u32,
     schedule: Schedule,
@@ -142,10 +144,7 @@ impl<P: ProfileTypes> Stepper<'_, P> {
             }
             self.step()?;
         }
-        Ok(match self.places.as_deref_mut() {
-            Some(places) => self.slam.process_with(frame, self.cam, places)?,
-            None => self.slam.process(frame, self.cam)?,
-        })
+        Ok(self.slam.process_with(frame, self.cam, self.places)?)
     }
 
     /// [`Schedule::Threaded`]: the front end on `frame` with the owed solve step on another
@@ -156,13 +155,10 @@ impl<P: ProfileTypes> Stepper<'_, P> {
         let Some((mut track, mut solve)) = self.slam.overlap(quota) else {
             return Ok(None);
         };
-        let places = self.places.as_deref_mut();
+        let places = &mut *self.places;
         let (solved, tracked) = std::thread::scope(|scope| {
             let solver = scope.spawn(move || solve.advance(quota));
-            let tracked = match places {
-                Some(places) => track.process_with(frame, cam, places),
-                None => track.process(frame, cam),
-            };
+            let tracked = track.process_with(frame, cam, places);
             (solver.join(), tracked)
         });
         if solve_finished(solved)? {
@@ -183,7 +179,7 @@ impl<P: ProfileTypes> Stepper<'_, P> {
         let Some((mut track, mut solve)) = self.slam.overlap_any() else {
             return Ok(None);
         };
-        let places = self.places.as_deref_mut();
+        let places = &mut *self.places;
         let tracking = AtomicBool::new(true);
         let (solved, tracked) = std::thread::scope(|scope| {
             let solver = scope.spawn(|| {
@@ -194,10 +190,7 @@ impl<P: ProfileTypes> Stepper<'_, P> {
                     }
                 }
             });
-            let tracked = match places {
-                Some(places) => track.process_with(frame, cam, places),
-                None => track.process(frame, cam),
-            };
+            let tracked = track.process_with(frame, cam, places);
             tracking.store(false, Ordering::Release);
             (solver.join(), tracked)
         });
@@ -249,6 +242,40 @@ pub struct Setup {
 /// The host's place memory: the board's store capacity, in RAM.
 pub type HostPlaces = PlaceMemory<RamStore<BOARD_STORE_KEYFRAMES>>;
 
+/// A run's place memory: the host's (boxed: half a megabyte), or none (`--no-places`).
+#[derive(Debug)]
+enum RunPlaces {
+    On(Box<HostPlaces>),
+    Off(NoPlaces),
+}
+
+impl Places for RunPlaces {
+    fn relocalizes(&self) -> bool {
+        match self {
+            Self::On(m) => m.relocalizes(),
+            Self::Off(n) => n.relocalizes(),
+        }
+    }
+
+    fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
+        match self {
+            Self::On(m) => m.remember(map, kf),
+            Self::Off(n) => n.remember(map, kf),
+        }
+    }
+
+    fn relocalize<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+    ) -> Option<Pose> {
+        match self {
+            Self::On(m) => m.relocalize(query, map),
+            Self::Off(n) => n.relocalize(query, map),
+        }
+    }
+}
+
 /// Runs `source` through a boxed `Slam<P>` set up by `setup` (`setup.scale` must name `P`'s
 /// map: it is what the report says).
 ///
@@ -268,13 +295,16 @@ where
     // A megabyte or more.
     let mut slam: Box<Slam<P>> = super::boxed(|| Slam::with_params(frontend, backend));
     // Half a megabyte; its RANSAC seeded as the front end's.
-    let mut memory: Option<Box<HostPlaces>> =
-        places.then(|| super::boxed(|| PlaceMemory::new(RamStore::new(), frontend.rng_seed)));
+    let mut memory = if places {
+        RunPlaces::On(super::boxed(|| PlaceMemory::new(RamStore::new(), frontend.rng_seed)))
+    } else {
+        RunPlaces::Off(NoPlaces)
+    };
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
     let mut stepper = Stepper {
         slam: &mut slam,
-        places: memory.as_deref_mut(),
+        places: &mut memory,
         cam,
         quota,
         schedule,
@@ -330,7 +360,10 @@ where
         .collect();
     keyframes.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
     let stats = slam.frontend().stats();
-    let places = memory.map(|m| places_report(&m, &per_frame));
+    let places = match &memory {
+        RunPlaces::On(m) => Some(places_report(m, &per_frame)),
+        RunPlaces::Off(_) => None,
+    };
     Ok(TrackingRun {
         data,
         camera: Trajectory::new(camera),
