@@ -127,17 +127,23 @@ const FIRMWARE_REPLAY_FRAMES: usize = 1000;
 /// The firmware in QEMU on the first frames of 7-Scenes and on the second recording of the
 /// budgets ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`).
 fn firmware_replay() -> Result<()> {
+    seven_scenes_on_the_board(None, firmware_replay_dir())?;
+    crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
+    firmware_jump_back()
+}
+
+/// The firmware replay of 7-Scenes (at most [`FIRMWARE_REPLAY_FRAMES`], in the order `frames`
+/// gives, or the recording's) into `out`, compared with the host's.
+fn seven_scenes_on_the_board(frames: Option<&str>, out: PathBuf) -> Result<()> {
     let opts = crate::replay::ReplayOptions {
         dataset: root().join(SEVEN_SCENES),
         calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
         max_frames: FIRMWARE_REPLAY_FRAMES,
-        frames: None,
-        out: firmware_replay_dir(),
+        frames: frames.map(str::parse).transpose()?,
+        out,
         qemu_args: Vec::new(),
     };
-    crate::replay::run(&root(), &opts)?;
-    crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
-    firmware_jump_back()
+    crate::replay::run(&root(), &opts)
 }
 
 /// The frames of 7-Scenes the firmware's jump-back plays: the camera carried back 420 frames to
@@ -149,20 +155,9 @@ const FIRMWARE_JUMP_BACK: &str = "0-520,100-130";
 /// relocalization, from its flash store.
 fn firmware_jump_back() -> Result<()> {
     let out = ci_out("firmware-replay-jump-back");
-    let opts = crate::replay::ReplayOptions {
-        dataset: root().join(SEVEN_SCENES),
-        calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
-        max_frames: FIRMWARE_REPLAY_FRAMES,
-        frames: Some(FIRMWARE_JUMP_BACK.parse()?),
-        out: out.clone(),
-        qemu_args: Vec::new(),
-    };
-    crate::replay::run(&root(), &opts)?;
-    let cost = out.join("cost.json");
-    let text =
-        std::fs::read_to_string(&cost).with_context(|| format!("reading {}", cost.display()))?;
-    let doc: serde_json::Value = serde_json::from_str(&text)?;
-    let relocalizations = doc["status"]["relocalizations"].as_u64().unwrap_or(0);
+    seven_scenes_on_the_board(Some(FIRMWARE_JUMP_BACK), out.clone())?;
+    let relocalizations =
+        crate::cost::FirmwareRun::read(&out.join("cost.json"))?.status.relocalizations;
     eprintln!(
         "firmware, 7-Scenes --frames {FIRMWARE_JUMP_BACK}: {relocalizations} relocalization(s) on the board"
     );

@@ -8,6 +8,7 @@ use anyhow::{Context, Result, bail};
 use ferroslam_core::config::QVGA;
 use ferroslam_sim::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
 use ferroslam_sim::replay::{Replay, ReplayOptions};
+use ferroslam_sim::report::RunOutputs;
 use ferroslam_sim::report::summary;
 use ferroslam_sim::run::TrackMode;
 
@@ -23,19 +24,8 @@ pub fn replay_with_bar(
     bar_m: Option<f64>,
     out: &Path,
 ) -> Result<(usize, f64)> {
-    let calibration =
-        calibration.map_or(CalibrationSource::File, |c| CalibrationSource::Path(c.to_path_buf()));
-    let options = ReplayOptions {
-        dataset: DatasetOptions { calibration, profile: QVGA, ..DatasetOptions::default() },
-        ..ReplayOptions::new(Some(mode))
-    };
-    let replay = Replay::open(dataset, options)?;
-    if let CalibrationOrigin::FolderName(_) = replay.dataset().calibration_origin() {
-        eprintln!("note: {}", replay.calibration_note());
-    }
-    let outputs = replay.run(out)?;
+    let outputs = replay_qvga(dataset, calibration, mode, None, out)?;
     let report = &outputs.report;
-    eprintln!("replay {}: {}", dataset.display(), summary(report, outputs.wall_s));
     let mode = mode.name();
     let (frames, tracked) = (report.frames, report.tracked_frames);
     let ate = report.ate_rmse_m.with_context(|| {
@@ -51,6 +41,37 @@ pub fn replay_with_bar(
         bail!("{label} {mode}: ATE RMSE {ate:.4} m is over the bar of {bar_m:.3} m");
     }
     Ok((frames, ate))
+}
+
+/// Replays `dataset` (with `calibration`, else its own) at QVGA in `mode` into `out`, its frames
+/// in the order `frames` gives (`A-B,C-D,...`) or the recording's, as `ferroslam-sim replay`
+/// does, and prints its summary.
+fn replay_qvga(
+    dataset: &Path,
+    calibration: Option<&Path>,
+    mode: TrackMode,
+    frames: Option<&str>,
+    out: &Path,
+) -> Result<RunOutputs> {
+    let calibration =
+        calibration.map_or(CalibrationSource::File, |c| CalibrationSource::Path(c.to_path_buf()));
+    let options = ReplayOptions {
+        dataset: DatasetOptions {
+            calibration,
+            profile: QVGA,
+            frames: frames.map(str::parse).transpose()?,
+            ..DatasetOptions::default()
+        },
+        ..ReplayOptions::new(Some(mode))
+    };
+    let replay = Replay::open(dataset, options)?;
+    if let CalibrationOrigin::FolderName(_) = replay.dataset().calibration_origin() {
+        eprintln!("note: {}", replay.calibration_note());
+    }
+    let outputs = replay.run(out)?;
+    let order = frames.map_or_else(String::new, |f| format!(" --frames {f}"));
+    eprintln!("replay {}{order}: {}", dataset.display(), summary(&outputs.report, outputs.wall_s));
+    Ok(outputs)
 }
 
 /// What a jump-back replay must show (issue 47): the camera carried back to a place it has
@@ -82,23 +103,8 @@ pub fn replay_jump_back(
     jump: &JumpBack<'_>,
     out: &Path,
 ) -> Result<(f64, usize)> {
-    let options = ReplayOptions {
-        dataset: DatasetOptions {
-            calibration: CalibrationSource::Path(calibration.to_path_buf()),
-            profile: QVGA,
-            frames: Some(jump.frames.parse()?),
-            ..DatasetOptions::default()
-        },
-        ..ReplayOptions::new(Some(TrackMode::SLAM))
-    };
-    let outputs = Replay::open(dataset, options)?.run(out)?;
+    let outputs = replay_qvga(dataset, Some(calibration), TrackMode::SLAM, Some(jump.frames), out)?;
     let report = &outputs.report;
-    eprintln!(
-        "replay {} --frames {}: {}",
-        dataset.display(),
-        jump.frames,
-        summary(report, outputs.wall_s)
-    );
     let label = format!("jump-back {}", jump.frames);
     let first = report
         .relocalizations

@@ -1,3 +1,7 @@
+//! Place memory unit tests: records, keys, verification, the memory's policies.
+//!
+//! Test code only: compiled under #[cfg(test)] from `loops/mod.rs`.
+
 use heapless::Vec;
 use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 

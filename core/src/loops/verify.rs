@@ -225,16 +225,14 @@ fn ransac(
     if n < 3 {
         return best_mask;
     }
-    let at = |r: u32| pool.get(r as usize % n).and_then(|&k| matches.get(usize::from(k)));
+    let at = |i: usize| pool.get(i).and_then(|&k| matches.get(usize::from(k)));
     for _ in 0..RANSAC_ITERATIONS {
-        let (ri, rj, rk) = (rng.next_u32(), rng.next_u32(), rng.next_u32());
-        if ri as usize % n == rj as usize % n
-            || rj as usize % n == rk as usize % n
-            || ri as usize % n == rk as usize % n
-        {
+        // Three draws in order, each an index into the pool.
+        let [i, j, k] = [(); 3].map(|()| rng.next_u32() as usize % n);
+        if i == j || j == k || i == k {
             continue;
         }
-        let (Some(a), Some(b), Some(c)) = (at(ri), at(rj), at(rk)) else { continue };
+        let (Some(a), Some(b), Some(c)) = (at(i), at(j), at(k)) else { continue };
         let Some(t) = triad([a.0, b.0, c.0], [a.1, b.1, c.1], params) else { continue };
         let mask = inliers_of(&t);
         if mask.count_ones() > best_mask.count_ones() {
