@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use ferroslam_core::loops::LoopStats;
 use serde::Serialize;
 use sha2::Digest;
 
@@ -60,6 +61,11 @@ pub struct Report {
     /// Relocalizations: how many and at which frames (0-based, in the order played); null
     /// without a place memory (odometry, `--no-places`).
     pub relocalizations: Option<Relocalizations>,
+    /// Loops: keyframes that looked for one (`queries`), loops verified (`detected`), those that
+    /// moved the map (`accepted`), those that agreed with it within a verification's accuracy
+    /// (`consistent`), queries refused as ambiguous (`rejected`), and the frames (0-based, in the
+    /// order played) of the accepted ones; null without a place memory.
+    pub loops: Option<Loops>,
     /// The place memory's figures (SLAM mode with places).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub places: Option<PlacesReport>,
@@ -100,6 +106,16 @@ pub struct Report {
     pub odometry: Vec<TrackedFrame>,
 }
 
+/// Loops of a run (report.json `loops`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Loops {
+    /// Loop detection's counters.
+    #[serde(flatten)]
+    pub stats: LoopStats,
+    /// The frames whose keyframe closed a loop, 0-based, in the order played.
+    pub frames: Vec<usize>,
+}
+
 /// Relocalizations of a run (report.json `relocalizations`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Relocalizations {
@@ -131,6 +147,7 @@ impl Report {
             relocalized_frames: 0,
             initializing_frames: 0,
             relocalizations: None,
+            loops: None,
             places: None,
             keyframes: 0,
             ate_rmse_m: None,
@@ -181,6 +198,10 @@ impl Report {
                 count: p.relocalized_frames.len(),
                 frames: p.relocalized_frames.clone(),
             }),
+            loops: run
+                .places
+                .as_ref()
+                .map(|p| Loops { stats: p.loops, frames: p.loop_frames.clone() }),
             places: run.places.clone(),
             keyframes: run.keyframes.len(),
             ate_rmse_m: evaluation.map(|e| e.ate.rmse),
@@ -315,7 +336,7 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
     };
     format!(
         "{} ({}): {} frames: {} tracked, {} relocalised, {} re-initialised, {} lost, {} before \
-         the first keyframe; {} keyframes; ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
+         the first keyframe; {} keyframes;{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
          in the core); core state {} bytes",
         report.mode,
         report.profile,
@@ -326,6 +347,10 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
         report.lost_frames,
         report.initializing_frames,
         report.keyframes,
+        report
+            .loops
+            .as_ref()
+            .map_or(String::new(), |l| format!(" {} loops closed;", l.frames.len())),
         report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
         wall_s,
         report.host_cost.process_median / 1000.0,

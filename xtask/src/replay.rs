@@ -308,6 +308,10 @@ fn first_difference(fw: &[PoseMessage], host: &TrackingRun) -> Option<String> {
                 let reloc = p.flags.contains(PoseFlags::RELOCALIZED);
                 field("relocalized", reloc, hf.relocalized)
             })
+            .or_else(|| {
+                let closed = p.flags.contains(PoseFlags::LOOP_CLOSED);
+                field("loop_closed", closed, hf.loop_closed)
+            })
             .or_else(|| field("inliers", usize::from(p.inliers), hf.inliers.min(65535)))
             .or_else(|| field("matches", usize::from(p.matches), hf.matches.min(65535)));
         if let Some(d) = diff {
@@ -406,6 +410,7 @@ mod tests {
                 recovery: false,
                 reinitialized: false,
                 relocalized: false,
+                loop_closed: false,
                 final_stages: 1,
                 guide_runs: 0,
                 rotation_estimated: false,

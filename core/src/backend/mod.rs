@@ -254,6 +254,8 @@ pub struct BackendStats {
     pub steps: u64,
     /// Work units charged (solver units and problem building).
     pub work_units: u64,
+    /// Solves dropped because a loop closure moved the map under them.
+    pub solves_dropped: u32,
 }
 
 /// The job in progress.
@@ -364,6 +366,7 @@ impl<
                 reference_landmarks_made: 0,
                 steps: 0,
                 work_units: 0,
+                solves_dropped: 0,
             },
         }
     }
@@ -388,6 +391,17 @@ impl<
     pub fn keyframe_added(&mut self, kf: KeyFrameId, seq: u32) {
         self.pending = Some(kf);
         self.newest_seq = self.newest_seq.max(seq);
+    }
+
+    /// Tells the back end that a loop closure moved the whole map: a solve under way (built from
+    /// the map before the move) is dropped, since writing it back would undo the move; the
+    /// keyframe waiting for a local BA still gets one.
+    pub fn map_moved(&mut self) {
+        if self.is_busy() {
+            self.ba.clear();
+            self.job = Job::Idle;
+            self.stats.solves_dropped = self.stats.solves_dropped.saturating_add(1);
+        }
     }
 
     /// Does at most about `work_quota` units of work on `map` (see the module documentation).

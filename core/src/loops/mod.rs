@@ -32,7 +32,7 @@ use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::Pose;
 use crate::map::{KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, RecordBytes};
 use crate::pose::TrackingRng;
-use crate::tracking::{PlaceQuery, Places};
+use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
 pub use verify::{RANSAC_ITERATIONS, Verified, VerifyParams, verify};
 
@@ -48,6 +48,29 @@ pub const MIN_RECORD_POINTS: usize = 12;
 pub const AMBIGUITY_DISTANCE: f32 = 0.15;
 /// See [`AMBIGUITY_DISTANCE`].
 pub const AMBIGUITY_RATIO: f32 = 0.8;
+
+/// A verified loop whose correction is below both this translation (metres) and
+/// [`LOOP_MIN_CORRECTION_RAD`] is consistent with the map and corrects nothing: a single view's
+/// verified pose is not more accurate than that.
+pub const LOOP_MIN_CORRECTION_M: f32 = 0.10;
+/// See [`LOOP_MIN_CORRECTION_M`] (radians, about 1 degree).
+pub const LOOP_MIN_CORRECTION_RAD: f32 = 0.087;
+
+/// What loop detection did, counted since the place memory was made (serializable for reports).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoopStats {
+    /// New keyframes that looked for a loop (the store held an older place).
+    pub queries: u32,
+    /// Of those, the ones where a remembered place verified.
+    pub detected: u32,
+    /// Loops detected whose correction moved the map.
+    pub accepted: u32,
+    /// Loops detected that agreed with the map within a verification's accuracy.
+    pub consistent: u32,
+    /// Queries refused because two places verified different poses.
+    pub rejected: u32,
+}
 
 /// What the place memory did, counted since it was made (serializable for reports).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
@@ -80,6 +103,7 @@ pub struct PlaceMemory<S> {
     params: VerifyParams,
     rng: TrackingRng,
     stats: PlaceStats,
+    loops: LoopStats,
     /// One record's bytes, read or written.
     buf: RecordBytes,
 }
@@ -102,6 +126,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 relocalized: 0,
                 ambiguous: 0,
             },
+            loops: LoopStats { queries: 0, detected: 0, accepted: 0, consistent: 0, rejected: 0 },
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
         }
     }
@@ -119,6 +144,11 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// Running totals.
     pub fn stats(&self) -> PlaceStats {
         self.stats
+    }
+
+    /// Loop detection's running totals.
+    pub fn loop_stats(&self) -> LoopStats {
+        self.loops
     }
 
     /// The store.
@@ -194,6 +224,86 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         map: &Map<K, L>,
     ) -> Option<Pose> {
         self.stats.queries = self.stats.queries.saturating_add(1);
+        match self.locate(query, map, Candidates::All) {
+            Located::At(t_wc, ..) => {
+                self.stats.relocalized = self.stats.relocalized.saturating_add(1);
+                Some(t_wc)
+            }
+            Located::Ambiguous => {
+                self.stats.ambiguous = self.stats.ambiguous.saturating_add(1);
+                None
+            }
+            Located::Nowhere => None,
+        }
+    }
+
+    fn close_loop<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+        kf: KeyFrameId,
+        track_start: u32,
+    ) -> Option<LoopClosure> {
+        let k = map.keyframe(kf)?;
+        let (seq, t_wc_now) = (k.seq, k.t_wc);
+        if self.len == 0 && track_start == 0 {
+            return None;
+        }
+        self.loops.queries = self.loops.queries.saturating_add(1);
+        let (t_wc, record_seq, record_timestamp_s, t_rq) =
+            match self.locate(query, map, Candidates::Before(track_start)) {
+                Located::At(t_wc, s, ts, t_rq) => (t_wc, s, ts, t_rq),
+                Located::Ambiguous => {
+                    self.loops.rejected = self.loops.rejected.saturating_add(1);
+                    return None;
+                }
+                Located::Nowhere => return None,
+            };
+        self.loops.detected = self.loops.detected.saturating_add(1);
+        // New world from old: what moves the keyframe to where the place puts it.
+        let correction = t_wc * t_wc_now.inverse();
+        let d = correction.translation.vector.norm();
+        if d < LOOP_MIN_CORRECTION_M && correction.rotation.angle() < LOOP_MIN_CORRECTION_RAD {
+            self.loops.consistent = self.loops.consistent.saturating_add(1);
+            return None;
+        }
+        self.loops.accepted = self.loops.accepted.saturating_add(1);
+        Some(LoopClosure { record_seq, record_timestamp_s, t_rq, keyframe_seq: seq, correction })
+    }
+}
+
+/// Which places a query considers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Candidates {
+    /// Every record and every keyframe of the active map (relocalization).
+    All,
+    /// Every record, and the keyframes of the active map made before this creation number
+    /// (loops: the map tracked since a re-initialization is not connected to what came before).
+    Before(u32),
+}
+
+/// Where a query put the frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Located {
+    /// At `t_wc`, verified in the place of this keyframe creation number (timestamp, and
+    /// the query's pose in its camera).
+    At(Pose, u32, f64, Pose),
+    /// Two places verified different poses.
+    Ambiguous,
+    /// No place verified.
+    Nowhere,
+}
+
+impl<S: KeyframeStore> PlaceMemory<S> {
+    /// Ranks the `candidates` by key distance to the query's, verifies the [`CANDIDATES`]
+    /// nearest, and returns the best verified pose unless a rival verifies a different one
+    /// nearly as well (see the module documentation).
+    fn locate<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+        candidates: Candidates,
+    ) -> Located {
         // The nearest keys, ascending (ties: the store before the map, each in slot order).
         let mut nearest: Vec<(u32, Place), CANDIDATES> = Vec::new();
         let mut offer = |d: u32, place: Place| {
@@ -209,10 +319,14 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             let Some(r) = self.read(slot) else { continue };
             offer(r.key.distance(&query.key), Place::Stored(slot));
         }
-        for (id, k) in map.keyframes() {
+        let before = match candidates {
+            Candidates::All => u32::MAX,
+            Candidates::Before(seq) => seq,
+        };
+        for (id, k) in map.keyframes().filter(|(_, k)| k.seq < before) {
             offer(k.place_key.distance(&query.key), Place::Active(id));
         }
-        let mut found: Vec<(Verified, Pose), CANDIDATES> = Vec::new();
+        let mut found: Vec<(Verified, Pose, u32, f64), CANDIDATES> = Vec::new();
         for &(_, place) in &nearest {
             let record = match place {
                 Place::Stored(slot) => self.read(slot),
@@ -221,20 +335,18 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             let Some(r) = record else { continue };
             if let Some(v) = verify(query, &r.points, &self.params, &mut self.rng) {
                 self.stats.verified = self.stats.verified.saturating_add(1);
-                let _ = found.push((v, r.t_wc * v.t_rq));
+                let _ = found.push((v, r.t_wc * v.t_rq, r.seq, r.timestamp_s));
             }
         }
-        let (best, t_wc) = found.iter().copied().max_by_key(|(v, _)| v.inliers)?;
-        let rival = found.iter().any(|(v, t)| {
+        let Some((best, t_wc, seq, ts)) = found.iter().copied().max_by_key(|(v, ..)| v.inliers)
+        else {
+            return Located::Nowhere;
+        };
+        let rival = found.iter().any(|(v, t, ..)| {
             pose_distance(t, &t_wc) > AMBIGUITY_DISTANCE
                 && v.inliers as f32 >= AMBIGUITY_RATIO * best.inliers as f32
         });
-        if rival {
-            self.stats.ambiguous = self.stats.ambiguous.saturating_add(1);
-            return None;
-        }
-        self.stats.relocalized = self.stats.relocalized.saturating_add(1);
-        Some(t_wc)
+        if rival { Located::Ambiguous } else { Located::At(t_wc, seq, ts, best.t_rq) }
     }
 }
 

@@ -253,3 +253,51 @@ fn a_place_with_a_moved_part_is_refused_unless_the_part_is_small() {
     let err = t_rq.inverse() * v.t_rq;
     assert!(err.translation.vector.norm() < 5e-3, "{err}");
 }
+
+#[test]
+fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_resolves() {
+    let mut rng = TestRng::new(10);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_wk = pose([1.0, 0.0, 0.5], [0.0, 0.4, 0.0]);
+    let (old, kf) = map_with(&place, t_wk);
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
+    memory.remember(&old, kf);
+    // The camera back near the remembered keyframe, where the map has drifted by `drift`.
+    let t_kq = pose([0.05, 0.02, 0.1], [0.0, 0.06, 0.0]);
+    let truth = t_wk * t_kq;
+    let points = query_of(&mut rng, &place, &t_kq, 2, 80);
+    for (drift, closes) in [
+        (pose([0.25, -0.1, 0.05], [0.0, 0.1, 0.02]), true),
+        (pose([0.01, 0.0, 0.0], [0.0, 0.002, 0.0]), false),
+    ] {
+        let (now, new_kf) = map_with(&[], drift * truth);
+        let closure = memory.close_loop(&query(&points), &now, new_kf, 0);
+        assert_eq!(closure.is_some(), closes, "drift {drift}");
+        if let Some(c) = closure {
+            // The correction moves the drifted keyframe onto its true pose (the drift undone).
+            let err = (c.correction * drift).translation.vector.norm();
+            assert!(err < 5e-3, "left {err} m");
+            assert_eq!(c.record_seq, 0);
+        }
+    }
+    let s = memory.loop_stats();
+    assert_eq!((s.queries, s.detected, s.accepted, s.consistent, s.rejected), (2, 2, 1, 1, 0));
+}
+
+#[test]
+fn a_loop_is_looked_for_in_the_map_only_before_tracking_last_restarted() {
+    let mut rng = TestRng::new(12);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_wk = pose([0.0, 0.0, 0.0], [0.0, 0.3, 0.0]);
+    // Keyframe 0 saw the place; keyframe 1, made after a restart 0.4 m off, sees it again.
+    let (mut map, _) = map_with(&place, t_wk);
+    let off = pose([0.4, 0.0, 0.0], [0.0, 0.0, 0.0]);
+    let new_kf = map.add_keyframe(off * t_wk, 2.0).unwrap();
+    let points = query_of(&mut rng, &place, &Pose::identity(), 0, 60);
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
+    // Tracking restarted at keyframe 1: keyframe 0 is not connected to it, a loop candidate.
+    let c = memory.close_loop(&query(&points), &map, new_kf, 1).unwrap();
+    assert!((c.correction * off).translation.vector.norm() < 5e-3);
+    // Tracking never restarted (and nothing stored): the map is one piece, nothing to close.
+    assert!(memory.close_loop(&query(&points), &map, new_kf, 0).is_none());
+}

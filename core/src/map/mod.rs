@@ -266,6 +266,23 @@ impl<const K: usize, const L: usize> Map<K, L> {
         self.landmarks.get_mut(h)
     }
 
+    /// Moves the keyframes made from creation number `first_seq` on, and the landmarks they
+    /// host, by `c` (`T_new_old`, a loop's correction of the world frame); their relative
+    /// geometry is unchanged. Cost: one pass over the keyframes and the landmarks.
+    pub fn move_world_from(&mut self, first_seq: u32, c: &Pose) {
+        for (_, k) in self.keyframes.iter_mut() {
+            if k.seq >= first_seq {
+                k.t_wc = c * k.t_wc;
+            }
+        }
+        let keyframes = &self.keyframes;
+        for (_, lm) in self.landmarks.iter_mut() {
+            if keyframes.get(lm.host.0).is_some_and(|k| k.seq >= first_seq) {
+                lm.p_w = c * lm.p_w;
+            }
+        }
+    }
+
     /// Every keyframe id, in slot order (not creation order: see [`KeyFrame::seq`]).
     pub fn keyframe_ids(&self) -> impl Iterator<Item = KeyFrameId> + '_ {
         self.keyframes.iter().map(|(h, _)| KeyFrameId(h))

@@ -78,6 +78,14 @@ impl MotionModel {
         Ok(())
     }
 
+    /// Moves the recorded poses into a world moved by `c` (`T_new_old`): the velocity is kept.
+    pub fn move_world(&mut self, c: &Pose) {
+        let c_inv = c.inverse();
+        for (_, t_cw) in self.prev.iter_mut().chain(self.last.iter_mut()) {
+            *t_cw *= c_inv;
+        }
+    }
+
     /// Forgets the history (after tracking loss: the velocity is no longer known).
     pub fn reset(&mut self) {
         *self = Self::new();

@@ -55,6 +55,8 @@ pub struct Slam<P: ProfileTypes> {
     backend: P::Backend,
     /// A keyframe a [`FrameJob`] made, with its creation number, not yet told to the back end.
     new_keyframe: Option<(KeyFrameId, u32)>,
+    /// Whether a [`FrameJob`] closed a loop (moved the map) not yet told to the back end.
+    map_moved: bool,
 }
 
 impl<P: ProfileTypes> Default for Slam<P> {
@@ -78,7 +80,7 @@ impl<P: ProfileTypes> Slam<P> {
 
     /// A system of these parts, with no keyframe waiting for the back end.
     const fn from_parts(frontend: P::Frontend, map: P::Map, backend: P::Backend) -> Self {
-        Self { frontend, map, backend, new_keyframe: None }
+        Self { frontend, map, backend, new_keyframe: None, map_moved: false }
     }
 
     /// Tracks one frame and hands a new keyframe to the back end (see
@@ -144,6 +146,7 @@ impl<P: ProfileTypes> Slam<P> {
             frontend: &mut self.frontend,
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
+            map_moved: &mut self.map_moved,
         };
         Some((frame, solve))
     }
@@ -158,6 +161,7 @@ impl<P: ProfileTypes> Slam<P> {
             frontend: &mut self.frontend,
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
+            map_moved: &mut self.map_moved,
         };
         Some((frame, solve))
     }
@@ -183,11 +187,16 @@ impl<P: ProfileTypes> Slam<P> {
             frontend: &mut self.frontend,
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
+            map_moved: &mut self.map_moved,
         }
     }
 
-    /// Tells the back end of the keyframe the last frame job made, if any.
+    /// Tells the back end of the loop the last frame job closed and of the keyframe it made, if
+    /// any.
     fn tell_backend(&mut self) {
+        if core::mem::take(&mut self.map_moved) {
+            self.backend.map_moved();
+        }
         if let Some((kf, seq)) = self.new_keyframe.take() {
             self.backend.keyframe_added(kf, seq);
         }
@@ -201,6 +210,7 @@ pub struct FrameJob<'a, P: ProfileTypes> {
     frontend: &'a mut P::Frontend,
     map: &'a mut P::Map,
     new_keyframe: &'a mut Option<(KeyFrameId, u32)>,
+    map_moved: &'a mut bool,
 }
 
 impl<P: ProfileTypes> FrameJob<'_, P> {
@@ -221,6 +231,7 @@ impl<P: ProfileTypes> FrameJob<'_, P> {
         if made.is_some() {
             *self.new_keyframe = made;
         }
+        *self.map_moved |= result.loop_closure.is_some();
         Ok(result)
     }
 }

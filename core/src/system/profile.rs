@@ -76,6 +76,9 @@ pub trait Adjuster<M> {
     /// Tells the back end of a new keyframe (see [`Backend::keyframe_added`]).
     fn keyframe_added(&mut self, kf: KeyFrameId, seq: u32);
 
+    /// Tells the back end a loop closure moved the map (see [`Backend::map_moved`]).
+    fn map_moved(&mut self);
+
     /// At most about `work_quota` units of work on `map` (see [`Backend::step`]).
     ///
     /// # Errors
@@ -155,6 +158,10 @@ impl<
 {
     fn keyframe_added(&mut self, kf: KeyFrameId, seq: u32) {
         Backend::keyframe_added(self, kf, seq);
+    }
+
+    fn map_moved(&mut self) {
+        Backend::map_moved(self);
     }
 
     fn step(

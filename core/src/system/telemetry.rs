@@ -27,6 +27,7 @@ impl PoseMessage {
             (r.guide_stage.is_recovery(), PoseFlags::RECOVERY),
             (r.reinitialized, PoseFlags::REINITIALIZED),
             (r.relocalized, PoseFlags::RELOCALIZED),
+            (r.loop_closure.is_some(), PoseFlags::LOOP_CLOSED),
         ] {
             if on {
                 flags |= bit;

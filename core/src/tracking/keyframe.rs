@@ -81,6 +81,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         }
         self.keyframing.made(kf, t_wc, (tracked, reacquired, created));
         self.stats.keyframes = self.stats.keyframes.saturating_add(1);
+        self.loop_pending = (inliers.is_some() && places.relocalizes()).then_some(kf);
         Some(kf)
     }
 
@@ -108,6 +109,55 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         if !self.detection.detect(frame, &self.params.hessian) {
             return None;
         }
+        let points = self.query_points(frame, cam);
+        let query = PlaceQuery { key: self.place_key(), points: &points, size: frame.gray.size() };
+        places.relocalize(&query, map).map(|t_wc| t_wc.inverse())
+    }
+
+    /// Asks the place memory whether keyframe `kf` of `map` closes a loop, its observed
+    /// landmarks with a descriptor (in its camera) as the query; when it does, moves the map
+    /// tracked since the last re-initialization (the keyframes from `track_start` on, the
+    /// landmarks they host) and this tracker's state by the correction, and keeps the loop for
+    /// the frame's result. The caller runs it on a cheap frame after the keyframe's (the
+    /// keyframe's own frame is the costliest kind); `size` is the tracking level's. Cost: one pass over the keyframe's
+    /// observations, then the place memory's query.
+    #[inline(never)]
+    pub(super) fn close_loop<const K: usize, const L: usize>(
+        &mut self,
+        map: &mut Map<K, L>,
+        places: &mut impl Places,
+        kf: KeyFrameId,
+        size: (usize, usize),
+    ) {
+        let Some(k) = map.keyframe(kf) else { return };
+        let t_cw = k.t_wc.inverse();
+        let mut points: Vec<QueryPoint, MAX_OBSERVATIONS_PER_KEYFRAME> = Vec::new();
+        for obs in &k.observations {
+            let Some(lm) = map.landmark(obs.landmark) else { continue };
+            let Some(descriptor) = lm.descriptor else { continue };
+            let _ = points.push(QueryPoint { uv: obs.uv(), p_c: t_cw * lm.p_w, descriptor });
+        }
+        let query = PlaceQuery { key: k.place_key, points: &points, size };
+        let Some(closure) = places.close_loop(&query, map, kf, self.track_start) else { return };
+        let c = closure.correction;
+        map.move_world_from(self.track_start, &c);
+        for t in self.local.items_mut() {
+            t.move_world(&c);
+        }
+        if let Some((_, t_wk)) = &mut self.keyframing.reference {
+            *t_wk = c * *t_wk;
+        }
+        self.recent.motion.move_world(&c);
+        self.closed = Some(closure);
+    }
+
+    /// The detected features of `frame` with valid depth, as query points with descriptors (at
+    /// most [`QUERY_POINTS`]).
+    fn query_points(
+        &self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Vec<QueryPoint, QUERY_POINTS> {
         let mut points: Vec<QueryPoint, QUERY_POINTS> = Vec::new();
         for f in &self.detection.features {
             let Some(z) = landmark_depth(frame, cam, f, &self.params) else { continue };
@@ -117,8 +167,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 break;
             }
         }
-        let query = PlaceQuery { key: self.place_key(), points: &points, size: frame.gray.size() };
-        places.relocalize(&query, map).map(|t_wc| t_wc.inverse())
+        points
     }
 
     /// Records the inliers as observations of keyframe `kf` and re-anchors the tracked landmarks

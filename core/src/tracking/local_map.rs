@@ -139,6 +139,11 @@ impl TrackedLandmark {
         GrayView::packed(&self.patch, PATCH_SIDE, PATCH_SIDE).ok().map(|v| (v, self.centre))
     }
 
+    /// Moves the anchoring frame's pose by `c` (`T_new_old`, a loop's correction of the world).
+    pub fn move_world(&mut self, c: &Pose) {
+        self.anchor_t_wc = c * self.anchor_t_wc;
+    }
+
     /// The linear map from the anchoring frame's pixels to the pixels of a camera at `t_cw`,
     /// at this landmark (see [`induced_affine`]).
     pub fn warp_to(&self, cam: &PinholeCamera, t_cw: &Pose) -> Mat2 {

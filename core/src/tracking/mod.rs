@@ -101,7 +101,7 @@ pub use local_map::{
 };
 pub use params::FrontendParams;
 pub use pipeline::RELOCALIZE_FRAMES;
-pub use places::{NoPlaces, PlaceQuery, Places, QueryPoint};
+pub use places::{LoopClosure, NoPlaces, PlaceQuery, Places, QueryPoint};
 pub use result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
     GuideStage,

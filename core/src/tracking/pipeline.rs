@@ -56,6 +56,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             tracked_landmarks: 0,
             keyframe_landmarks: (0, 0, 0),
             work: FrontendWork::default(),
+            loop_closure: None,
         }
     }
 
@@ -116,6 +117,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             tracked_landmarks: 0,
             keyframe_landmarks: (0, 0, 0),
             work: FrontendWork::default(),
+            loop_closure: None,
         };
         if summary.stage == GuideStage::AffineBank {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);
@@ -123,6 +125,9 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         let Some(est) = summary.estimate else {
             if was_lost {
                 let r = self.initialize(frame, cam, map, places, predicted_t_cw);
+                if let Some(k) = r.keyframe.and_then(|kf| map.keyframe(kf)) {
+                    self.track_start = k.seq;
+                }
                 return FrameResult {
                     matches: summary.matches,
                     guide_matches: summary.guides,
@@ -145,6 +150,13 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             }
         };
         self.cull_local_map();
+        // The last keyframe looks for a loop on a frame that made none and ran no costly step.
+        if keyframe.is_none()
+            && !self.work.is_costly()
+            && let Some(kf) = self.loop_pending.take()
+        {
+            self.close_loop(map, places, kf, frame.gray.size());
+        }
         FrameResult {
             t_wc: est.t_cw.inverse(),
             state: FrontendState::Tracking,

@@ -32,6 +32,23 @@ pub struct PlaceQuery<'a> {
     pub size: (usize, usize),
 }
 
+/// A loop closed at a new keyframe: a remembered place outside the active map verified it
+/// elsewhere than the map had it, by more than the map's drift can be ignored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopClosure {
+    /// Creation number of the remembered keyframe.
+    pub record_seq: u32,
+    /// Its timestamp, seconds.
+    pub record_timestamp_s: f64,
+    /// DEBUG the new keyframe's pose in the remembered keyframe's camera.
+    pub t_rq: Pose,
+    /// Creation number of the new keyframe.
+    pub keyframe_seq: u32,
+    /// The rigid motion from the map's world frame to the remembered one (`T_new_old`): applied
+    /// to the active map, it puts the new keyframe where the place verified it.
+    pub correction: Pose,
+}
+
 /// The place memory as the front end sees it.
 pub trait Places {
     /// Whether it answers queries at all (a lost frame skips its query work when not).
@@ -47,6 +64,18 @@ pub trait Places {
         query: &PlaceQuery<'_>,
         map: &Map<K, L>,
     ) -> Option<Pose>;
+
+    /// Keyframe `kf`, just made in `map` from the frame seen as `query`: the loop it closes, if
+    /// any, with a remembered place or a keyframe of `map` made before `track_start` (the
+    /// creation number tracking last re-initialized at: the map before it is not connected to
+    /// `kf`). The caller then moves the map from `track_start` on by the correction.
+    fn close_loop<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+        kf: KeyFrameId,
+        track_start: u32,
+    ) -> Option<LoopClosure>;
 }
 
 /// No place memory: keyframes leaving the map are forgotten and nothing relocalizes.
@@ -65,6 +94,16 @@ impl Places for NoPlaces {
         _: &PlaceQuery<'_>,
         _: &Map<K, L>,
     ) -> Option<Pose> {
+        None
+    }
+
+    fn close_loop<const K: usize, const L: usize>(
+        &mut self,
+        _: &PlaceQuery<'_>,
+        _: &Map<K, L>,
+        _: KeyFrameId,
+        _: u32,
+    ) -> Option<LoopClosure> {
         None
     }
 }

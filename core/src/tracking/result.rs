@@ -7,6 +7,8 @@ use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::KeyFrameId;
 
+use super::places::LoopClosure;
+
 /// Where the front end is in its life cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -75,6 +77,9 @@ pub struct FrameResult {
     pub keyframe_landmarks: (usize, usize, usize),
     /// The costly steps the front end ran on this frame (what its cost is made of).
     pub work: FrontendWork,
+    /// The loop this frame's keyframe closed: the active map was moved by its correction, and
+    /// `t_wc` is in the corrected frame (it jumps from the previous frame's by the correction).
+    pub loop_closure: Option<LoopClosure>,
 }
 
 /// The costly steps the front end ran on one frame: a frame's instructions are mostly these

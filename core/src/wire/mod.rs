@@ -54,7 +54,8 @@ pub use message::{
 ///   `backend_ticks`, replacing version 1's `process_ticks`).
 /// - 3: [`StatusMessage`] counts re-initialisations and relocalizations; [`PoseFlags::RELOCALIZED`]
 ///   marks a relocalized frame.
-pub const SCHEMA_VERSION: u8 = 3;
+/// - 4: [`PoseFlags::LOOP_CLOSED`] marks a frame whose keyframe closed a loop.
+pub const SCHEMA_VERSION: u8 = 4;
 
 /// Bytes of the CRC at the end of a payload.
 pub const CRC_BYTES: usize = 4;

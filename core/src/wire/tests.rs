@@ -38,6 +38,7 @@ fn pose_message(i: u32) -> PoseMessage {
         tracked_landmarks: 100,
         keyframe_landmarks: (0, 0, 0),
         work: FrontendWork::default(),
+        loop_closure: None,
     };
     PoseMessage::from_frame_result(i, 1_305_031_102.175_304 + f64::from(i) / 30.0, &r)
 }

@@ -100,6 +100,7 @@ fn print_table(mut out: impl std::io::Write, messages: &[Message]) -> std::io::R
             (PoseFlags::RECOVERY, 'R'),
             (PoseFlags::REINITIALIZED, 'I'),
             (PoseFlags::RELOCALIZED, 'L'),
+            (PoseFlags::LOOP_CLOSED, 'C'),
         ]
         .iter()
         .map(|&(bit, c)| if p.flags.contains(bit) { c } else { '-' })

@@ -1,6 +1,6 @@
 //! What a run gives back: the trajectories, per-frame figures and the back end's record.
 
-use ferroslam_core::loops::PlaceStats;
+use ferroslam_core::loops::{LoopStats, PlaceStats};
 use ferroslam_core::tracking::{FrameResult, FrontendState, GuideStage};
 use serde::Serialize;
 
@@ -33,6 +33,9 @@ pub struct TrackedFrame {
     pub reinitialized: bool,
     /// Whether tracking restarted at this frame in a verified remembered place.
     pub relocalized: bool,
+    /// Whether this frame's keyframe closed a loop (the map and its pose moved by the
+    /// correction).
+    pub loop_closed: bool,
     /// Final stages run (the rerun of the winning one included).
     pub final_stages: u8,
     /// Guide runs.
@@ -56,6 +59,10 @@ pub struct PlacesReport {
     pub stats: PlaceStats,
     /// The frames (0-based, in the order played) that relocalized.
     pub relocalized_frames: Vec<usize>,
+    /// Loop detection's counters (see `loops::LoopStats`).
+    pub loops: LoopStats,
+    /// The frames (0-based, in the order played) whose keyframe closed a loop.
+    pub loop_frames: Vec<usize>,
 }
 
 /// What the back end did over a run (SLAM mode).
@@ -166,6 +173,7 @@ pub(super) fn frame_figures(timestamp_s: f64, r: &FrameResult) -> TrackedFrame {
         recovery: r.guide_stage.is_recovery(),
         reinitialized: r.reinitialized,
         relocalized: r.relocalized,
+        loop_closed: r.loop_closure.is_some(),
         final_stages: r.work.final_stages,
         guide_runs: r.work.guide_runs,
         rotation_estimated: r.work.rotation_estimated,

@@ -19,7 +19,7 @@ use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::{KeyFrameId, Map, RamStore};
 use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
 use ferroslam_core::tracking::{
-    FrameResult, FrontendParams, FrontendState, NoPlaces, PlaceQuery, Places,
+    FrameResult, FrontendParams, FrontendState, LoopClosure, NoPlaces, PlaceQuery, Places,
 };
 
 use super::data_path::{Progress, drive};
@@ -199,16 +199,19 @@ impl<P: ProfileTypes> Stepper<'_, P> {
     }
 }
 
-/// What the place memory did over a run; the relocalized frames by their index in the order
-/// played.
+/// What the place memory did over a run; the relocalized frames and those that closed a loop by
+/// their index in the order played.
 fn places_report(memory: &HostPlaces, per_frame: &[TrackedFrame]) -> PlacesReport {
-    let frames: Vec<usize> =
-        per_frame.iter().enumerate().filter(|(_, f)| f.relocalized).map(|(i, _)| i).collect();
+    let frames = |which: fn(&TrackedFrame) -> bool| -> Vec<usize> {
+        per_frame.iter().enumerate().filter(|(_, f)| which(f)).map(|(i, _)| i).collect()
+    };
     PlacesReport {
         store_capacity: BOARD_STORE_KEYFRAMES,
         stored: memory.len(),
         stats: memory.stats(),
-        relocalized_frames: frames,
+        relocalized_frames: frames(|f| f.relocalized),
+        loops: memory.loop_stats(),
+        loop_frames: frames(|f| f.loop_closed),
     }
 }
 
@@ -272,6 +275,19 @@ impl Places for RunPlaces {
         match self {
             Self::On(m) => m.relocalize(query, map),
             Self::Off(n) => n.relocalize(query, map),
+        }
+    }
+
+    fn close_loop<const K: usize, const L: usize>(
+        &mut self,
+        query: &PlaceQuery<'_>,
+        map: &Map<K, L>,
+        kf: KeyFrameId,
+        track_start: u32,
+    ) -> Option<LoopClosure> {
+        match self {
+            Self::On(m) => m.close_loop(query, map, kf, track_start),
+            Self::Off(n) => n.close_loop(query, map, kf, track_start),
         }
     }
 }
