@@ -68,6 +68,9 @@ pub struct LoopStats {
     pub accepted: u32,
     /// Loops detected that agreed with the map within a verification's accuracy.
     pub consistent: u32,
+    /// Loops detected that disagreed with a map tracked without a restart since the place was
+    /// seen: not applied (the tracked chain is trusted over one view's pose).
+    pub held: u32,
     /// Queries refused because two places verified different poses.
     pub rejected: u32,
 }
@@ -126,7 +129,14 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 relocalized: 0,
                 ambiguous: 0,
             },
-            loops: LoopStats { queries: 0, detected: 0, accepted: 0, consistent: 0, rejected: 0 },
+            loops: LoopStats {
+                queries: 0,
+                detected: 0,
+                accepted: 0,
+                consistent: 0,
+                held: 0,
+                rejected: 0,
+            },
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
         }
     }
@@ -265,6 +275,12 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         let d = correction.translation.vector.norm();
         if d < LOOP_MIN_CORRECTION_M && correction.rotation.angle() < LOOP_MIN_CORRECTION_RAD {
             self.loops.consistent = self.loops.consistent.saturating_add(1);
+            return None;
+        }
+        if record_seq >= track_start {
+            // Tracked without a restart since that place: the map's own chain is trusted over
+            // one view's verified pose.
+            self.loops.held = self.loops.held.saturating_add(1);
             return None;
         }
         self.loops.accepted = self.loops.accepted.saturating_add(1);

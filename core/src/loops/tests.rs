@@ -271,7 +271,8 @@ fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_re
         (pose([0.01, 0.0, 0.0], [0.0, 0.002, 0.0]), false),
     ] {
         let (now, new_kf) = map_with(&[], drift * truth);
-        let closure = memory.close_loop(&query(&points), &now, new_kf, 0);
+        // Tracking restarted after the remembered keyframe (creation number 0) was made.
+        let closure = memory.close_loop(&query(&points), &now, new_kf, 1);
         assert_eq!(closure.is_some(), closes, "drift {drift}");
         if let Some(c) = closure {
             // The correction moves the drifted keyframe onto its true pose (the drift undone).
@@ -282,6 +283,10 @@ fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_re
     }
     let s = memory.loop_stats();
     assert_eq!((s.queries, s.detected, s.accepted, s.consistent, s.rejected), (2, 2, 1, 1, 0));
+    // Tracked without a restart since: the same disagreement is held, not applied.
+    let (now, new_kf) = map_with(&[], pose([0.25, -0.1, 0.05], [0.0, 0.1, 0.02]) * truth);
+    assert!(memory.close_loop(&query(&points), &now, new_kf, 0).is_none());
+    assert_eq!(memory.loop_stats().held, 1);
 }
 
 #[test]
