@@ -123,14 +123,15 @@ fn padded_range(values: impl Iterator<Item = f64>, min_span: f64) -> (f64, f64) 
 
 /// Draws the ground truth and the aligned estimate (world positions of the camera, metres) seen
 /// from above, in the plane of their two largest extents ([`PlotPlane::of_largest_extent`]), both
-/// axes at the same scale, as an SVG file at `path`, with a circle on each of `marks` (estimate
-/// positions where tracking relocalized). Returns the plane drawn; the axis labels say which
-/// (`x [m]`, `z [m]`, ...).
+/// axes at the same scale, as an SVG file at `path`, with a circle on each point of `marks`
+/// (estimate positions of an event, such as `relocalized`, named in the legend: blue, then green,
+/// for each kind in turn). Returns the plane drawn; the axis labels say which (`x [m]`, `z [m]`,
+/// ...).
 pub fn plot_trajectory_top_view(
     path: &Path,
     gt: &[Point3<f64>],
     est_aligned: &[Point3<f64>],
-    marks: &[Point3<f64>],
+    marks: &[Marks<'_>],
     title: &str,
 ) -> Result<PlotPlane, PlotError> {
     if gt.is_empty() && est_aligned.is_empty() {
@@ -177,12 +178,14 @@ pub fn plot_trajectory_top_view(
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
     }
-    if !marks.is_empty() {
-        let mark = BLUE.stroke_width(2);
+    for (kind, color) in
+        marks.iter().filter(|m| !m.points.is_empty()).zip([BLUE, GREEN].iter().cycle())
+    {
+        let mark = color.stroke_width(2);
         chart
-            .draw_series(marks.iter().map(|p| Circle::new((p[h], p[v]), 6, mark)))
+            .draw_series(kind.points.iter().map(|p| Circle::new((p[h], p[v]), 6, mark)))
             .map_err(&err)?
-            .label("relocalized")
+            .label(kind.label)
             .legend(move |(x, y)| Circle::new((x + 10, y), 6, mark));
     }
     chart
@@ -193,6 +196,15 @@ pub fn plot_trajectory_top_view(
         .map_err(&err)?;
     root.present().map_err(&err)?;
     Ok(plane)
+}
+
+/// Positions of one kind of event on a trajectory plot, named by `label` in its legend.
+#[derive(Debug, Clone)]
+pub struct Marks<'a> {
+    /// The legend's name of the event.
+    pub label: &'a str,
+    /// Where it happened, metres.
+    pub points: Vec<Point3<f64>>,
 }
 
 /// Draws an error curve (`errors_m[i]` in metres at `times_s[i]` in seconds) as an SVG file at
@@ -245,13 +257,13 @@ pub fn plot_error_over_time(
 }
 
 /// Writes both plots of an evaluation: the top view of ground truth and aligned estimate to
-/// `top_view_svg`, with the estimate's poses at the timestamps `relocalized_s` circled, and the
-/// ATE of each match over time to `ate_svg`.
+/// `top_view_svg`, with the estimate's poses at the timestamps of each event kind of `events`
+/// (`(label, timestamps in seconds)`) circled, and the ATE of each match over time to `ate_svg`.
 pub fn plot_report(
     report: &EvalReport,
     top_view_svg: &Path,
     ate_svg: &Path,
-    relocalized_s: &[f64],
+    events: &[(&str, Vec<f64>)],
 ) -> Result<(), PlotError> {
     let gt: Vec<Point3<f64>> =
         report.matches.iter().map(|m| Point3::from(m.gt.t_wc.translation.vector)).collect();
@@ -260,11 +272,17 @@ pub fn plot_report(
         .iter()
         .map(|m| Point3::from(m.est_aligned_t_wc.translation.vector))
         .collect();
-    let marks: Vec<Point3<f64>> = report
-        .matches
+    let marks: Vec<Marks<'_>> = events
         .iter()
-        .filter(|m| relocalized_s.contains(&m.est.timestamp_s))
-        .map(|m| Point3::from(m.est_aligned_t_wc.translation.vector))
+        .map(|(label, at_s)| Marks {
+            label,
+            points: report
+                .matches
+                .iter()
+                .filter(|m| at_s.contains(&m.est.timestamp_s))
+                .map(|m| Point3::from(m.est_aligned_t_wc.translation.vector))
+                .collect(),
+        })
         .collect();
     let title = format!(
         "trajectory (ATE rmse {:.4} m, {} matched poses)",
@@ -308,12 +326,23 @@ mod tests {
         assert!(text.contains("x [m]") && text.contains("z [m]"));
         plot_trajectory_top_view(&b, &gt, &est, &[], "top view").unwrap();
         assert_eq!(text, std::fs::read_to_string(&b).unwrap());
-        // A relocalization is circled and named in the legend; without one, nothing is.
+        // A relocalization and a loop are circled and named in the legend; an event kind that
+        // did not happen is not.
         assert!(!text.contains("relocalized"));
         let c = dir.path().join("c.svg");
-        plot_trajectory_top_view(&c, &gt, &est, &est[50..51], "top view").unwrap();
+        let marks = |loops: usize| {
+            [
+                Marks { label: "relocalized", points: est[50..51].to_vec() },
+                Marks { label: "loop closed", points: est[80..80 + loops].to_vec() },
+            ]
+        };
+        plot_trajectory_top_view(&c, &gt, &est, &marks(1), "top view").unwrap();
         let marked = std::fs::read_to_string(&c).unwrap();
-        assert!(marked.contains("relocalized") && marked.matches("<circle").count() >= 2);
+        assert!(marked.contains("relocalized") && marked.contains("loop closed"));
+        assert!(marked.matches("<circle").count() >= 4, "two marks and two legend circles");
+        plot_trajectory_top_view(&c, &gt, &est, &marks(0), "top view").unwrap();
+        let marked = std::fs::read_to_string(&c).unwrap();
+        assert!(marked.contains("relocalized") && !marked.contains("loop closed"));
     }
 
     #[test]

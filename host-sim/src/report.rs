@@ -290,9 +290,12 @@ pub fn write_odometry(
         },
     };
     if let Some(e) = &evaluation {
-        let relocalized: Vec<f64> =
-            run.per_frame.iter().filter(|f| f.relocalized).map(|f| f.timestamp_s).collect();
-        plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"), &relocalized)?;
+        let at = |which: fn(&TrackedFrame) -> bool| -> Vec<f64> {
+            run.per_frame.iter().filter(|f| which(f)).map(|f| f.timestamp_s).collect()
+        };
+        let events =
+            [("relocalized", at(|f| f.relocalized)), ("loop closed", at(|f| f.loop_closed))];
+        plot::plot_report(e, &dir.join("trajectory.svg"), &dir.join("ate.svg"), &events)?;
     }
     // An online trajectory that cannot be evaluated (e.g. empty) has no ATE either.
     let online_ate = gt.and_then(|gt| evaluate(gt, &run.online).ok()).map(|e| e.ate.rmse);

@@ -2,12 +2,14 @@
 //! Two different rooms in one run (issue 47): 7-Scenes' kitchen, then the demo's synthetic room,
 //! and the other way round, through one `Slam` with its place memory. The switch loses tracking
 //! and the lost frames query the memory, which holds only the other room: no place may be
-//! accepted there (a false relocalization is worse than a missed one).
+//! accepted there (a false relocalization is worse than a missed one). Tracking then restarts in
+//! the second room, and its keyframes look for loops in the first room (remembered, and the map's
+//! keyframes from before the restart): no loop may close across them either.
 
 use ferroslam_core::config::QVGA;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::loops::{LoopStats, PlaceMemory};
 use ferroslam_core::map::RamStore;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, QvgaSlam};
 use ferroslam_core::tracking::FrameOutcome;
@@ -64,13 +66,21 @@ fn demo_room(frames: usize) -> Room {
     Room { source, cam }
 }
 
-/// Runs `a` then `b` through one SLAM with a place memory; returns the outcome of every frame of
-/// `b` and the memory's query count.
-fn one_run(mut a: Room, mut b: Room) -> (Vec<FrameOutcome>, u32) {
+/// What became of the second room's frames: each frame's outcome and whether it closed a loop, the
+/// memory's relocalization queries and its loop counters.
+struct Second {
+    outcomes: Vec<FrameOutcome>,
+    loops_closed: usize,
+    queries: u32,
+    loops: LoopStats,
+}
+
+/// Runs `a` then `b` through one SLAM with a place memory.
+fn one_run(mut a: Room, mut b: Room) -> Second {
     let mut slam: Box<QvgaSlam> = Box::default();
     let mut places = Box::new(PlaceMemory::new(RamStore::<64>::new(), 1));
     let mut t_end = 0.0;
-    let mut outcomes = Vec::new();
+    let (mut outcomes, mut loops_closed) = (Vec::new(), 0);
     for (room, second) in [(&mut a, false), (&mut b, true)] {
         let (cam, t0) = (room.cam, t_end);
         (room.source)(&mut |frame| {
@@ -81,30 +91,32 @@ fn one_run(mut a: Room, mut b: Room) -> (Vec<FrameOutcome>, u32) {
             t_end = frame.timestamp_s;
             if second {
                 outcomes.push(r.outcome());
+                loops_closed += usize::from(r.loop_closure.is_some());
             }
         });
     }
-    (outcomes, places.stats().queries)
+    Second { outcomes, loops_closed, queries: places.stats().queries, loops: places.loop_stats() }
 }
 
-fn assert_no_relocalization(outcomes: &[FrameOutcome], queries: u32, what: &str) {
-    assert!(queries > 0, "{what}: the switch was queried (the test is not vacuous)");
+fn assert_nothing_across(s: &Second, what: &str) {
+    let outcomes = &s.outcomes;
+    assert!(s.queries > 0, "{what}: the switch was queried (the test is not vacuous)");
     let relocalized = outcomes.iter().filter(|o| **o == FrameOutcome::Relocalized).count();
     assert_eq!(relocalized, 0, "{what}: {outcomes:?}");
     assert!(
         outcomes.contains(&FrameOutcome::Reinitialized),
         "{what}: tracking restarted in the second room"
     );
+    assert!(s.loops.queries > 0, "{what}: the second room looked for loops: {:?}", s.loops);
+    assert_eq!((s.loops.accepted, s.loops_closed), (0, 0), "{what}: {:?}", s.loops);
 }
 
 #[test]
-fn the_kitchen_then_the_demo_room_relocalizes_nowhere() {
-    let (outcomes, queries) = one_run(kitchen(0, 200), demo_room(60));
-    assert_no_relocalization(&outcomes, queries, "kitchen, then demo room");
+fn the_kitchen_then_the_demo_room_relocalizes_nowhere_and_closes_no_loop() {
+    assert_nothing_across(&one_run(kitchen(0, 200), demo_room(60)), "kitchen, then demo room");
 }
 
 #[test]
-fn the_demo_room_then_the_kitchen_relocalizes_nowhere() {
-    let (outcomes, queries) = one_run(demo_room(120), kitchen(300, 60));
-    assert_no_relocalization(&outcomes, queries, "demo room, then kitchen");
+fn the_demo_room_then_the_kitchen_relocalizes_nowhere_and_closes_no_loop() {
+    assert_nothing_across(&one_run(demo_room(120), kitchen(300, 60)), "demo room, then kitchen");
 }
