@@ -111,8 +111,9 @@ pub fn core_structures() -> Vec<Structure> {
         ),
         row::<PlaceMemory<NoStore>>(
             "loops::PlaceMemory",
-            "the place memory beside its store: one record's buffer (1 KiB), counters, RANSAC \
-             state; the store itself is a port (flash on a board, RAM on the host)",
+            "the place memory beside its store: the RAM index of 512 records' key bits (24 B \
+             each), one record's buffer (1 KiB), counters, RANSAC state; the store itself is a \
+             port (flash on a board, RAM on the host)",
         ),
         row::<BoardMap>(
             "map::BoardMap",

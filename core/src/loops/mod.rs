@@ -1,21 +1,27 @@
 //! The place memory: keyframes that leave the active map are remembered in a long-term store
-//! ([`crate::map::KeyframeStore`]), and a frame the front end cannot track is relocalized in a
-//! remembered place that geometric verification accepts.
+//! ([`crate::map::KeyframeStore`]), a frame the front end cannot track is relocalized in a
+//! remembered place that geometric verification accepts, and a new keyframe that verifies in a
+//! place the map is not connected to closes a loop.
 //!
 //! [`PlaceMemory`] implements the front end's port ([`crate::tracking::Places`]):
 //! - **Remember** (a keyframe leaving the map): its pose, place key and up to
 //!   [`PLACE_POINTS`] observed landmarks with a descriptor
 //!   (in its camera frame) become a [`PlaceRecord`] in the next free slot. A full store thins
 //!   itself: the new record replaces the stored one nearest to it in pose (the most redundant),
-//!   never failing and never growing.
-//! - **Relocalize** (a lost frame): every record's key, and every key of the active map's
-//!   keyframes, is compared with the frame's (one pass over the store and the map); the
-//!   [`CANDIDATES`] nearest are verified (`verify.rs`: descriptor matches,
+//!   never failing and never growing. Its key's [`KeyBits`] go to a RAM index by slot (24 bytes
+//!   a record).
+//! - **Relocalize** (a lost frame): the index gives the [`SHORTLIST`] records nearest by key
+//!   bits; their keys and every key of the active map's keyframes are compared with the frame's;
+//!   the [`CANDIDATES`] nearest are verified (`verify.rs`: descriptor matches,
 //!   3D-3D RANSAC with Horn/Umeyama, inlier count, spread and ratio); the best verified place
 //!   gives the pose, unless another candidate verifies a different pose nearly as well (an
 //!   ambiguous scene: nothing is returned). A false relocalization is worse than a missed one.
 //!
-//! Cost: a query reads each record once and decodes [`CANDIDATES`] of them again; each
+//! - **Close a loop** (a new keyframe, see [`Places::close_loop`]): the same query, with the
+//!   active map's keyframes made after tracking last restarted left out.
+//!
+//! Cost: a query passes over the index once, decodes [`SHORTLIST`] records and [`CANDIDATES`]
+//! of them again, whatever the store holds; each
 //! verification is bounded by [`PLACE_POINTS`] x the
 //! query's points descriptor comparisons and [`RANSAC_ITERATIONS`] minimal solves.
 //! Deterministic: the RANSAC draws come from a generator seeded by the caller. Why this design:
@@ -30,7 +36,9 @@ use heapless::Vec;
 
 use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::Pose;
-use crate::map::{KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, RecordBytes};
+use crate::map::{
+    KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, RecordBytes,
+};
 use crate::pose::TrackingRng;
 use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
@@ -38,6 +46,14 @@ pub use verify::{RANSAC_ITERATIONS, Verified, VerifyParams, verify};
 
 /// Remembered places verified per query, the nearest by key.
 pub const CANDIDATES: usize = 3;
+
+/// Records a query reads in full, the nearest by their [`KeyBits`] in the RAM index; their
+/// keys then rank them with the active map's keyframes. Bounds a query's reads of the store
+/// whatever it holds.
+pub const SHORTLIST: usize = 16;
+
+/// Records the RAM index covers: the board's store (a larger store is used up to this many).
+pub const INDEXED_RECORDS: usize = crate::config::capacity::BOARD_STORE_KEYFRAMES;
 
 /// Fewest verification points for a keyframe to be remembered.
 pub const MIN_RECORD_POINTS: usize = 12;
@@ -107,6 +123,8 @@ pub struct PlaceMemory<S> {
     rng: TrackingRng,
     stats: PlaceStats,
     loops: LoopStats,
+    /// The index: each held record's [`KeyBits`], by slot (`0..len`).
+    index: [KeyBits; INDEXED_RECORDS],
     /// One record's bytes, read or written.
     buf: RecordBytes,
 }
@@ -137,8 +155,16 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 held: 0,
                 rejected: 0,
             },
+            index: [KeyBits([0; KEY_BITS_WORDS]); INDEXED_RECORDS],
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
         }
+    }
+
+    /// Attaches the memory to `store` in place of its own, forgetting what it held (for a memory
+    /// made `const` in a `static` before its store exists, as a board's flash region).
+    pub fn attach(&mut self, store: S) {
+        self.store = store;
+        self.len = 0;
     }
 
     /// Records held.
@@ -182,7 +208,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// The slot a new record at `t_wc` goes to: the next free one, or when the store is full the
     /// one whose pose is nearest (translation in metres plus rotation in radians).
     fn slot_for(&mut self, t_wc: &Pose) -> Option<usize> {
-        let capacity = self.store.capacity();
+        let capacity = self.store.capacity().min(INDEXED_RECORDS);
         if self.len < capacity {
             return Some(self.len);
         }
@@ -219,6 +245,9 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         if self.store.write(slot, &self.buf).is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
             return;
+        }
+        if let Some(bits) = self.index.get_mut(slot) {
+            *bits = record.key.bits();
         }
         if slot == self.len {
             self.len += 1;
@@ -331,7 +360,22 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 let _ = nearest.insert(at, (d, place));
             }
         };
-        for slot in 0..self.len {
+        // The records nearest by key bits (ascending; ties in slot order), then read in slot
+        // order for their full keys.
+        let bits = query.key.bits();
+        let mut short: Vec<(u32, usize), SHORTLIST> = Vec::new();
+        for (slot, b) in self.index.iter().enumerate().take(self.len) {
+            let d = b.distance(&bits);
+            let at = short.iter().position(|&(e, _)| d < e).unwrap_or(short.len());
+            if at < SHORTLIST {
+                if short.is_full() {
+                    let _ = short.pop();
+                }
+                let _ = short.insert(at, (d, slot));
+            }
+        }
+        short.sort_unstable_by_key(|&(_, slot)| slot);
+        for &(_, slot) in &short {
             let Some(r) = self.read(slot) else { continue };
             offer(r.key.distance(&query.key), Place::Stored(slot));
         }

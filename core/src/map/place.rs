@@ -97,6 +97,39 @@ impl PlaceKey {
     }
 }
 
+/// Words of [`KeyBits`].
+pub const KEY_BITS_WORDS: usize = PLACE_KEY_CELLS.div_ceil(32);
+
+/// A [`PlaceKey`] reduced to one bit per cell: set where the cell is brighter than the key's mean.
+/// What the place memory's index keeps in RAM for each record (24 bytes against the key's 192):
+/// the Hamming distance between two of them ranks places roughly as the keys' distance does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct KeyBits(pub [u32; KEY_BITS_WORDS]);
+
+impl KeyBits {
+    /// Cells whose bit differs.
+    pub fn distance(&self, other: &Self) -> u32 {
+        self.0.iter().zip(&other.0).map(|(a, b)| (a ^ b).count_ones()).sum()
+    }
+}
+
+impl PlaceKey {
+    /// The key's [`KeyBits`] (exact integers: the same on every target).
+    pub fn bits(&self) -> KeyBits {
+        let n = PLACE_KEY_CELLS as u32;
+        let sum: u32 = self.0.iter().map(|&v| u32::from(v)).sum();
+        let mut bits = KeyBits::default();
+        for (c, &v) in self.0.iter().enumerate() {
+            if u32::from(v) * n > sum
+                && let Some(w) = bits.0.get_mut(c / 32)
+            {
+                *w |= 1 << (c % 32);
+            }
+        }
+        bits
+    }
+}
+
 /// A verification point of a remembered keyframe.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlacePoint {

@@ -81,6 +81,10 @@ fn main() -> ! {
     // than the stack).
     static mut STORE: HalfFrame = HalfFrame::new();
     static mut PIPELINE: Pipeline = Pipeline::new();
+    // The place memory (its RAM index is 12 KiB): a static too, attached to the flash region
+    // below.
+    static mut PLACES: BoardPlaces =
+        PlaceMemory::new(FlashStore::new(RegionFlash::empty()), SLAM_FRONTEND.rng_seed);
     stack::paint();
     let (store, pipeline) = (STORE, PIPELINE);
     // SAFETY: `main` runs once and is the only code that names PLACE_STORE, so this is the one
@@ -91,8 +95,8 @@ fn main() -> ! {
         core::mem::size_of::<HalfFrame>(),
         core::mem::size_of::<Pipeline>()
     );
-    let places =
-        PlaceMemory::new(FlashStore::new(RegionFlash::new(place_store)), SLAM_FRONTEND.rng_seed);
+    let places = PLACES;
+    places.attach(FlashStore::new(RegionFlash::new(place_store)));
     let status = match run(store, pipeline, places) {
         Ok(()) => EXIT_SUCCESS,
         Err(e) => {
@@ -107,7 +111,7 @@ fn main() -> ! {
 fn run(
     store: &'static mut HalfFrame,
     pipeline: &'static mut Pipeline,
-    mut places: BoardPlaces,
+    places: &mut BoardPlaces,
 ) -> Result<(), Failure> {
     let mut line = [0u8; 512];
     let args = parse_args(command_line(&mut line).map_err(Failure::CommandLine)?)?;
@@ -131,7 +135,7 @@ fn run(
         let outcome = run_frame(
             &mut source,
             pipeline,
-            &mut places,
+            places,
             &args.cam,
             &mut link,
             &mut clock,
