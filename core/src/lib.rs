@@ -12,15 +12,16 @@
 //!   apart so the back end's solve can run beside the next frame's tracking with the same bits.
 //!   It also turns results into [`wire`] messages.
 //! - [`loops`] (beside `backend`): the place memory: keyframes leaving the map remembered in a
-//!   long-term store, and relocalization of a lost frame in a remembered place, verified by 3D-3D
-//!   RANSAC (loop closure through the segment graph is to come).
+//!   long-term store, relocalization of a lost frame in a remembered place, verified by 3D-3D
+//!   RANSAC, and loops that bring a map restarted off the known one back onto it (drift
+//!   correction through the segment graph is to come); saved to and loaded from a map file.
 //! - *`ar`* (to come, beside `backend`): planes detected on depth and anchors that follow them.
 //! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
 //!   segmented global bundle adjustment, in bounded steps ([`backend::SolveJob`]).
 //! - [`tracking`]: the frame-to-map front end: the local map of tracked landmarks, the guide and
 //!   final matching stages, keyframes and new landmarks.
-//! - *`persist`* (to come, beside `map`): the durable, versioned, power-cut-safe format of the
-//!   long-term store and the map on NOR flash.
+//! - [`persist`] (beside `map`): the map file, the long-term store's records behind a versioned,
+//!   checksummed header (the power-cut-safe log on NOR flash is to come).
 //! - [`map`]: fixed-capacity arenas of keyframes and landmarks with typed, generation-checked ids,
 //!   and the keyframes' observations (the active map in RAM; a long-term store in flash will join
 //!   it behind a storage port).
@@ -69,6 +70,7 @@ pub mod loops;
 pub mod map;
 pub mod matching;
 pub mod optim;
+pub mod persist;
 pub mod pose;
 pub mod system;
 #[cfg(test)]

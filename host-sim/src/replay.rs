@@ -18,7 +18,7 @@ use nalgebra::Point3;
 use crate::dataset::{Dataset, DatasetOptions};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
-use crate::run::{self, Progress, RunOptions, TrackMode};
+use crate::run::{self, MapFiles, Progress, RunOptions, TrackMode};
 use crate::trajectory::Trajectory;
 
 /// Frames the dataset reader decodes ahead of the core.
@@ -38,13 +38,21 @@ pub struct ReplayOptions {
     /// Whether to draw a progress bar on stderr (only ever drawn on a terminal). Replays run side
     /// by side in one process turn it off.
     pub progress_bar: bool,
+    /// Map files the SLAM run starts from and saves to.
+    pub maps: MapFiles,
 }
 
 impl ReplayOptions {
     /// `mode` with the dataset's defaults (its own calibration, QVGA, every frame), the core's
     /// seed and a progress bar.
     pub fn new(mode: Option<TrackMode>) -> Self {
-        Self { dataset: DatasetOptions::default(), mode, seed: None, progress_bar: true }
+        Self {
+            dataset: DatasetOptions::default(),
+            mode,
+            seed: None,
+            progress_bar: true,
+            maps: MapFiles::default(),
+        }
     }
 }
 
@@ -126,6 +134,7 @@ impl Replay {
             seed: options.seed,
             progress_bar: options.progress_bar,
             sensor,
+            maps: options.maps.clone(),
             ..default
         };
         let run = run::track(&mut reader, frames, &cam, &run_options)?;

@@ -6,63 +6,26 @@
 //! restart, and the loop's correction moves the new map onto the old. Before the loop the poses
 //! are far off the ground truth, after it they are back on it.
 
-use ferroslam_core::config::QVGA;
-use ferroslam_core::frame::{FrameSource, RgbdFrame};
-use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::frame::FrameSource;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::RamStore;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, QvgaSlam};
 use ferroslam_core::tracking::FrameOutcome;
-use ferroslam_sim::run::ProfileSource;
-use ferroslam_sim::synth::{SynthError, SynthFrame, SynthOptions, SyntheticSequence};
-use nalgebra::Isometry3;
-
-/// The demo's frames in the order `order` gives, renumbered 1/30 s apart.
-struct Played {
-    sequence: SyntheticSequence,
-    order: Vec<usize>,
-    next: usize,
-    frame: SynthFrame,
-}
-
-impl FrameSource for Played {
-    type Error = SynthError;
-
-    fn next_frame(&mut self) -> Result<Option<RgbdFrame<'_>>, SynthError> {
-        let Some(&index) = self.order.get(self.next) else { return Ok(None) };
-        self.sequence.render_into(index, &mut self.frame)?;
-        self.frame.timestamp_s = self.next as f64 / 30.0;
-        self.next += 1;
-        Ok(Some(self.frame.view()?))
-    }
-}
+use ferroslam_tests::demo_frames::demo_frames;
 
 #[test]
 fn a_map_restarted_off_the_known_one_is_brought_back_by_a_loop() {
-    let sequence = SyntheticSequence::new(SynthOptions::default()).unwrap();
-    let k = sequence.intrinsics();
-    let cam =
-        PinholeCamera::new(k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32, k.width, k.height)
-            .unwrap()
-            .downscaled_2x()
-            .unwrap();
-    let order: Vec<usize> = (0..300).chain(150..300).collect();
-    let truth: Vec<Isometry3<f64>> =
-        order.iter().map(|&i| sequence.ground_truth(i).unwrap().t_wc).collect();
-    let frame = sequence.render(0).unwrap();
-    let played = Played { sequence, order, next: 0, frame };
-    let mut source = ProfileSource::new(played, QVGA.downsample_levels, QVGA.depth_level);
+    let (mut source, cam, truth) = demo_frames((0..300).chain(150..300).collect());
     let mut slam: Box<QvgaSlam> = Box::default();
     let mut places = Box::new(PlaceMemory::new(RamStore::<64>::new(), 1));
     // Each frame's position error against the ground truth (the world is the first camera's), and
     // what became of it.
     let (mut errors, mut outcomes, mut loops) = (Vec::new(), Vec::new(), Vec::new());
-    let t_0w = truth[0].inverse();
     while let Some(frame) = source.next_frame().unwrap() {
         slam.step_backend(&cam, DEFAULT_BACKEND_QUOTA).unwrap();
         let r = slam.process_with(&frame, &cam, places.as_mut()).unwrap();
         let i = errors.len();
-        let t = (t_0w * truth[i]).translation.vector.cast::<f32>();
+        let t = truth[i].translation.vector;
         errors.push((r.t_wc.translation.vector - t).norm());
         outcomes.push(r.outcome());
         if r.loop_closure.is_some() {

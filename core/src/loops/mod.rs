@@ -7,8 +7,8 @@
 //! - **Remember** (a keyframe leaving the map): its pose, place key and up to
 //!   [`PLACE_POINTS`] observed landmarks with a descriptor
 //!   (in its camera frame) become a [`PlaceRecord`] in the next free slot. A full store thins
-//!   itself: the new record replaces the stored one nearest to it in pose (the most redundant),
-//!   never failing and never growing. Its key's [`KeyBits`] go to a RAM index by slot (24 bytes
+//!   itself: the new record replaces, among the stored ones that look most like it, the one
+//!   nearest to it in pose (the most redundant), never failing and never growing. Its key's [`KeyBits`] go to a RAM index by slot (24 bytes
 //!   a record).
 //! - **Relocalize** (a lost frame): the index gives the [`SHORTLIST`] records nearest by key
 //!   bits; their keys and every key of the active map's keyframes are compared with the frame's;
@@ -34,11 +34,13 @@ mod tests;
 
 use heapless::Vec;
 
-use crate::config::capacity::PLACE_POINTS;
+use crate::config::capacity::{PLACE_POINTS, PLACE_RECORD_BYTES};
 use crate::geometry::Pose;
 use crate::map::{
-    KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlacePoint, PlaceRecord, RecordBytes,
+    KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlaceKey, PlacePoint, PlaceRecord,
+    RecordBytes,
 };
+use crate::persist::{MAP_HEADER_BYTES, MapFileError, MapHeader, RecordsChecksum};
 use crate::pose::TrackingRng;
 use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
@@ -127,6 +129,17 @@ pub struct PlaceMemory<S> {
     index: [KeyBits; INDEXED_RECORDS],
     /// One record's bytes, read or written.
     buf: RecordBytes,
+    /// Whether keyframes leaving the map are left unremembered ([`Self::freeze`]).
+    frozen: bool,
+}
+
+/// Why [`PlaceMemory::save`] stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SaveError<E> {
+    /// The writer's error.
+    Write(E),
+    /// The store could not give a record.
+    Map(MapFileError),
 }
 
 impl<S: KeyframeStore> PlaceMemory<S> {
@@ -157,6 +170,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             },
             index: [KeyBits([0; KEY_BITS_WORDS]); INDEXED_RECORDS],
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
+            frozen: false,
         }
     }
 
@@ -165,6 +179,95 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     pub fn attach(&mut self, store: S) {
         self.store = store;
         self.len = 0;
+    }
+
+    /// Writes the held records as a map file ([`crate::persist`]) through `write`, called with
+    /// the header's bytes, then each record's, in slot order. Cost: every record read twice (the
+    /// checksum first).
+    ///
+    /// # Errors
+    /// `write`'s first error; a record the store cannot read is a [`MapFileError::Record`]
+    /// (wrapped in [`SaveError::Map`]).
+    pub fn save<E>(
+        &mut self,
+        mut write: impl FnMut(&[u8]) -> Result<(), E>,
+    ) -> Result<(), SaveError<E>> {
+        let mut checksum = RecordsChecksum::default();
+        for pass in [false, true] {
+            if pass {
+                let header = MapHeader { records: self.len as u32, checksum: checksum.value() };
+                write(&header.encode()).map_err(SaveError::Write)?;
+            }
+            for slot in 0..self.len {
+                if self.store.read(slot, &mut self.buf).is_err() {
+                    return Err(SaveError::Map(MapFileError::Record { index: slot as u32 }));
+                }
+                if pass {
+                    write(&self.buf).map_err(SaveError::Write)?;
+                } else {
+                    checksum.add(&self.buf);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Replaces what the memory holds by the map file `file` ([`crate::persist`]): the header,
+    /// the length, the checksum and every record are checked first, and nothing is taken unless
+    /// all hold. Cost: every record decoded once and written to the store once.
+    ///
+    /// # Errors
+    /// What is wrong with the file ([`MapFileError`]); the memory is unchanged then. A store that
+    /// fails a write is counted in [`PlaceStats::store_errors`] and keeps what was written.
+    pub fn load(&mut self, file: &[u8]) -> Result<(), MapFileError> {
+        let header = MapHeader::decode(file)?;
+        let expected = header.file_bytes();
+        if file.len() < expected {
+            return Err(MapFileError::Truncated { expected, found: file.len() });
+        }
+        if file.len() > expected {
+            return Err(MapFileError::TrailingBytes { expected, found: file.len() });
+        }
+        let capacity = self.store.capacity().min(INDEXED_RECORDS);
+        if header.records as usize > capacity {
+            return Err(MapFileError::TooManyRecords { records: header.records, capacity });
+        }
+        let records =
+            || file.get(MAP_HEADER_BYTES..).unwrap_or(&[]).chunks_exact(PLACE_RECORD_BYTES);
+        let mut checksum = RecordsChecksum::default();
+        records().for_each(|r| checksum.add(r));
+        if checksum.value() != header.checksum {
+            return Err(MapFileError::Checksum {
+                stored: header.checksum,
+                computed: checksum.value(),
+            });
+        }
+        for (index, r) in records().enumerate() {
+            self.buf.copy_from_slice(r);
+            if PlaceRecord::decode(&self.buf).is_err() {
+                return Err(MapFileError::Record { index: index as u32 });
+            }
+        }
+        self.len = 0;
+        for r in records() {
+            self.buf.copy_from_slice(r);
+            let Ok(record) = PlaceRecord::decode(&self.buf) else { continue };
+            if self.store.write(self.len, &self.buf).is_err() {
+                self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+                break;
+            }
+            if let Some(bits) = self.index.get_mut(self.len) {
+                *bits = record.key.bits();
+            }
+            self.len += 1;
+        }
+        Ok(())
+    }
+
+    /// Stops (or resumes) remembering: keyframes leaving the map are not written to the store
+    /// while frozen (localization in a loaded map adds nothing to it).
+    pub fn freeze(&mut self, frozen: bool) {
+        self.frozen = frozen;
     }
 
     /// Records held.
@@ -205,15 +308,17 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         record
     }
 
-    /// The slot a new record at `t_wc` goes to: the next free one, or when the store is full the
-    /// one whose pose is nearest (translation in metres plus rotation in radians).
-    fn slot_for(&mut self, t_wc: &Pose) -> Option<usize> {
+    /// The slot a new record at `t_wc` with key `key` goes to: the next free one, or when the
+    /// store is full, among the [`SHORTLIST`] records nearest by key bits (the views most like
+    /// it), the one whose pose is nearest (translation in metres plus rotation in radians).
+    /// Cost: a pass over the index and at most [`SHORTLIST`] record reads, however full.
+    fn slot_for(&mut self, t_wc: &Pose, key: &PlaceKey) -> Option<usize> {
         let capacity = self.store.capacity().min(INDEXED_RECORDS);
         if self.len < capacity {
             return Some(self.len);
         }
         let mut best: Option<(f32, usize)> = None;
-        for slot in 0..capacity {
+        for (_, slot) in self.shortlist(&key.bits()) {
             let Some(r) = self.read(slot) else { return Some(slot) };
             let d = pose_distance(&r.t_wc, t_wc);
             if best.is_none_or(|(b, _)| d < b) {
@@ -221,6 +326,26 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             }
         }
         best.map(|(_, slot)| slot)
+    }
+}
+
+impl<S> PlaceMemory<S> {
+    /// The [`SHORTLIST`] held records whose key bits are nearest `bits` (`(distance, slot)`; the
+    /// nearest kept on ties in slot order), in slot order.
+    fn shortlist(&self, bits: &KeyBits) -> Vec<(u32, usize), SHORTLIST> {
+        let mut short: Vec<(u32, usize), SHORTLIST> = Vec::new();
+        for (slot, b) in self.index.iter().enumerate().take(self.len) {
+            let d = b.distance(bits);
+            let at = short.iter().position(|&(e, _)| d < e).unwrap_or(short.len());
+            if at < SHORTLIST {
+                if short.is_full() {
+                    let _ = short.pop();
+                }
+                let _ = short.insert(at, (d, slot));
+            }
+        }
+        short.sort_unstable_by_key(|&(_, slot)| slot);
+        short
     }
 }
 
@@ -235,12 +360,19 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         true
     }
 
+    fn holds_places(&self) -> bool {
+        self.len > 0
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
+        if self.frozen {
+            return;
+        }
         let Some(record) = record_of(map, kf) else {
             self.stats.too_few_points = self.stats.too_few_points.saturating_add(1);
             return;
         };
-        let Some(slot) = self.slot_for(&record.t_wc) else { return };
+        let Some(slot) = self.slot_for(&record.t_wc, &record.key) else { return };
         record.encode(&mut self.buf);
         if self.store.write(slot, &self.buf).is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
@@ -360,22 +492,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 let _ = nearest.insert(at, (d, place));
             }
         };
-        // The records nearest by key bits (ascending; ties in slot order), then read in slot
-        // order for their full keys.
-        let bits = query.key.bits();
-        let mut short: Vec<(u32, usize), SHORTLIST> = Vec::new();
-        for (slot, b) in self.index.iter().enumerate().take(self.len) {
-            let d = b.distance(&bits);
-            let at = short.iter().position(|&(e, _)| d < e).unwrap_or(short.len());
-            if at < SHORTLIST {
-                if short.is_full() {
-                    let _ = short.pop();
-                }
-                let _ = short.insert(at, (d, slot));
-            }
-        }
-        short.sort_unstable_by_key(|&(_, slot)| slot);
-        for &(_, slot) in &short {
+        for (_, slot) in self.shortlist(&query.key.bits()) {
             let Some(r) = self.read(slot) else { continue };
             offer(r.key.distance(&query.key), Place::Stored(slot));
         }

@@ -2,6 +2,8 @@
 //!
 //! Test code only: compiled under #[cfg(test)] from `loops/mod.rs`.
 
+extern crate std;
+
 use heapless::Vec;
 use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -305,4 +307,157 @@ fn a_loop_is_looked_for_in_the_map_only_before_tracking_last_restarted() {
     assert!((c.correction * off).translation.vector.norm() < 5e-3);
     // Tracking never restarted (and nothing stored): the map is one piece, nothing to close.
     assert!(memory.close_loop(&query(&points), &map, new_kf, 0).is_none());
+}
+
+/// A store that counts its reads.
+#[derive(Clone)]
+struct Counting<const N: usize> {
+    store: RamStore<N>,
+    reads: usize,
+}
+
+impl<const N: usize> KeyframeStore for Counting<N> {
+    type Error = crate::map::SlotOutOfRange;
+
+    fn capacity(&self) -> usize {
+        self.store.capacity()
+    }
+
+    fn read(&mut self, slot: usize, buf: &mut RecordBytes) -> Result<(), Self::Error> {
+        self.reads += 1;
+        self.store.read(slot, buf)
+    }
+
+    fn write(&mut self, slot: usize, buf: &RecordBytes) -> Result<(), Self::Error> {
+        self.store.write(slot, buf)
+    }
+}
+
+#[test]
+fn a_full_store_reads_a_shortlist_to_thin_and_to_query() {
+    let mut rng = TestRng::new(13);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let mut memory = PlaceMemory::new(Counting { store: RamStore::<64>::new(), reads: 0 }, 1);
+    // 64 records along a line, each with its own random key.
+    let key_of = |rng: &mut TestRng| {
+        let mut key = PlaceKey::default();
+        key.0.iter_mut().for_each(|k| *k = rng.next_u32() as u8);
+        key
+    };
+    let mut keys: Vec<PlaceKey, 64> = Vec::new();
+    for i in 0..64 {
+        let (mut map, kf) = map_with(&place, pose([i as f32 * 0.5, 0.0, 0.0], [0.0; 3]));
+        let key = key_of(&mut rng);
+        map.keyframe_mut(kf).unwrap().place_key = key;
+        keys.push(key).unwrap();
+        memory.remember(&map, kf);
+    }
+    assert_eq!(memory.len(), 64);
+    // One more, with the key of record 40 but nearest in pose to record 10: one of the records
+    // that look like it gives way, not record 10 (which the seeded keys leave out of the shortlist).
+    let (mut map, kf) = map_with(&place, pose([5.1, 0.0, 0.0], [0.0; 3]));
+    map.keyframe_mut(kf).unwrap().place_key = keys[40];
+    let before = memory.store().reads;
+    memory.remember(&map, kf);
+    assert!(memory.store().reads - before <= SHORTLIST, "thinning reads a shortlist");
+    assert_eq!(memory.stats().thinned, 1);
+    let mut store = memory.store().clone();
+    let mut buf = [0; PLACE_RECORD_BYTES];
+    let x = |store: &mut Counting<64>, buf: &mut RecordBytes, slot| {
+        store.read(slot, buf).unwrap();
+        PlaceRecord::decode(buf).unwrap().t_wc.translation.x
+    };
+    assert_eq!(x(&mut store, &mut buf, 10), 5.0, "the record nearest in pose but unlike it stays");
+    let replaced = (0..64).filter(|&slot| x(&mut store, &mut buf, slot) == 5.1).count();
+    assert_eq!(replaced, 1);
+    // A query reads the shortlist and its candidates again, not the whole store.
+    let before = memory.store().reads;
+    let points = query_of(&mut rng, &place, &Pose::identity(), 0, 50);
+    let _ = memory.relocalize(&query(&points), &Map::<4, 128>::new());
+    assert!(memory.store().reads - before <= SHORTLIST + CANDIDATES);
+}
+
+/// A memory of three records (different poses and keys) over a store of `N`.
+fn three_records<const N: usize>(rng: &mut TestRng) -> PlaceMemory<RamStore<N>> {
+    let place = scene(rng, PLACE_POINTS);
+    let mut memory = PlaceMemory::new(RamStore::<N>::new(), 1);
+    for x in [0.0, 1.0, 2.0] {
+        let (mut map, kf) = map_with(&place, pose([x, 0.0, 0.0], [0.0; 3]));
+        map.keyframe_mut(kf)
+            .unwrap()
+            .place_key
+            .0
+            .iter_mut()
+            .for_each(|k| *k = rng.next_u32() as u8);
+        memory.remember(&map, kf);
+    }
+    memory
+}
+
+fn saved<S: KeyframeStore>(memory: &mut PlaceMemory<S>) -> std::vec::Vec<u8> {
+    let mut file = std::vec::Vec::new();
+    memory
+        .save(|b: &[u8]| -> Result<(), ()> {
+            file.extend_from_slice(b);
+            Ok(())
+        })
+        .unwrap();
+    file
+}
+
+#[test]
+fn a_saved_map_loads_and_saves_to_the_same_bytes_and_relocalizes() {
+    let mut rng = TestRng::new(14);
+    let mut memory = three_records::<8>(&mut rng);
+    let file = saved(&mut memory);
+    assert_eq!(file.len(), 16 + 3 * PLACE_RECORD_BYTES);
+    let mut loaded = PlaceMemory::new(RamStore::<8>::new(), 1);
+    assert!(!loaded.holds_places());
+    loaded.load(&file).unwrap();
+    assert!(loaded.holds_places() && loaded.len() == 3);
+    assert_eq!(saved(&mut loaded), file, "save -> load -> save gives the same bytes");
+    // Frozen (localization): a keyframe leaving the map is not remembered.
+    loaded.freeze(true);
+    let (map, kf) = map_with(&scene(&mut rng, PLACE_POINTS), Pose::identity());
+    loaded.remember(&map, kf);
+    assert_eq!(loaded.len(), 3);
+}
+
+#[test]
+fn a_damaged_map_file_is_refused_whole_with_what_is_wrong() {
+    let mut rng = TestRng::new(15);
+    let file = saved(&mut three_records::<8>(&mut rng));
+    // A memory that holds something already keeps it when a load fails.
+    let mut memory = three_records::<4>(&mut rng);
+    let before = saved(&mut memory);
+    let mut small = three_records::<2>(&mut rng);
+    let small_before = saved(&mut small);
+    let err = small.load(&file).unwrap_err();
+    assert_eq!(err, crate::persist::MapFileError::TooManyRecords { records: 3, capacity: 2 });
+    assert_eq!(saved(&mut small), small_before);
+    let mut flipped = file.clone();
+    flipped[16 + PLACE_RECORD_BYTES + 100] ^= 0x04;
+    let mut version = file.clone();
+    version[4] = 2;
+    let mut unreadable = file.clone();
+    // A record whose bytes are all erased (the checksum in the header made to match).
+    unreadable[16..16 + PLACE_RECORD_BYTES].fill(0xFF);
+    let mut sum = crate::persist::RecordsChecksum::default();
+    unreadable[16..].chunks(PLACE_RECORD_BYTES).for_each(|r| sum.add(r));
+    unreadable[12..16].copy_from_slice(&sum.value().to_le_bytes());
+    let mut trailing = file.clone();
+    trailing.push(0);
+    for (bad, wrong) in [
+        (&file[..file.len() - 1], "Truncated"),
+        (&trailing[..], "TrailingBytes"),
+        (&flipped[..], "Checksum"),
+        (&version[..], "Version(2)"),
+        (&unreadable[..], "Record { index: 0 }"),
+        (&file[..16], "Truncated"),
+        (&b"not a map at all"[..], "NotAMap"),
+    ] {
+        let err = memory.load(bad).unwrap_err();
+        assert!(std::format!("{err:?}").starts_with(wrong), "{wrong}: {err:?}");
+        assert_eq!(saved(&mut memory), before, "{wrong}: nothing half loaded");
+    }
 }

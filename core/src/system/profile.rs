@@ -69,6 +69,9 @@ pub trait MapAccess {
     fn keyframes(&self) -> impl Iterator<Item = (KeyFrameId, &KeyFrame)> + '_;
     /// Every landmark, in slot order.
     fn landmarks(&self) -> impl Iterator<Item = (LandmarkId, &Landmark)> + '_;
+    /// Hands keyframe `kf` to `places` to be remembered (as when it leaves the map; it stays in
+    /// the map): what saving a map does with the active keyframes.
+    fn remember_in(&self, places: &mut impl Places, kf: KeyFrameId);
 }
 
 /// A back end adjusting a map of type `M` in bounded steps.
@@ -144,6 +147,10 @@ impl<const K: usize, const L: usize> MapAccess for Map<K, L> {
 
     fn landmarks(&self) -> impl Iterator<Item = (LandmarkId, &Landmark)> + '_ {
         Map::landmarks(self)
+    }
+
+    fn remember_in(&self, places: &mut impl Places, kf: KeyFrameId) {
+        places.remember(self, kf);
     }
 }
 

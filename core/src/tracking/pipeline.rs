@@ -60,6 +60,42 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         }
     }
 
+    /// Starts tracking in a place memory that already holds places (a loaded map): the first
+    /// keyframe is made at the pose a remembered place verifies, so the run continues in the
+    /// loaded map's world frame. Until one verifies, frames stay before the first keyframe
+    /// (no pose, no new world frame).
+    pub(super) fn start_in_places<const K: usize, const L: usize>(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        map: &mut Map<K, L>,
+        places: &mut impl Places,
+    ) -> FrameResult {
+        if let Some(t_cw) = self.query_places(frame, cam, map, places) {
+            let r = self.initialize(frame, cam, map, places, &t_cw);
+            if r.keyframe.is_some() {
+                return FrameResult { tracked: false, relocalized: true, ..r };
+            }
+        }
+        FrameResult {
+            t_wc: Pose::identity(),
+            state: FrontendState::Initializing,
+            tracked: false,
+            reinitialized: false,
+            relocalized: false,
+            keyframe: None,
+            reference_keyframe: None,
+            inliers: 0,
+            matches: 0,
+            guide_matches: 0,
+            guide_stage: GuideStage::None,
+            tracked_landmarks: 0,
+            keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
+            loop_closure: None,
+        }
+    }
+
     /// Tracks the local map; on failure, relocalizes in a remembered place, or else
     /// re-initializes when the previous frame was lost too.
     pub(super) fn track_or_recover<const K: usize, const L: usize>(

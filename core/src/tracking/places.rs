@@ -54,6 +54,10 @@ pub trait Places {
     /// Whether it answers queries at all (a lost frame skips its query work when not).
     fn relocalizes(&self) -> bool;
 
+    /// Whether it holds places already (a map loaded before the run): the front end then starts
+    /// by relocalizing in them, not by making a new world frame.
+    fn holds_places(&self) -> bool;
+
     /// Keyframe `kf` of `map` is about to leave the map: remember it.
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId);
 
@@ -84,6 +88,10 @@ pub struct NoPlaces;
 
 impl Places for NoPlaces {
     fn relocalizes(&self) -> bool {
+        false
+    }
+
+    fn holds_places(&self) -> bool {
         false
     }
 

@@ -208,7 +208,9 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             self.local.clear();
             self.keyframing.reference = None;
         }
-        let result = if self.local.is_empty() || self.keyframing.reference.is_none() {
+        let result = if self.stats.keyframes == 0 && places.holds_places() {
+            self.start_in_places(frame, cam, map, places)
+        } else if self.local.is_empty() || self.keyframing.reference.is_none() {
             self.initialize(frame, cam, map, places, &predicted_t_cw)
         } else {
             self.track_or_recover(frame, cam, map, places, &predicted_t_cw)

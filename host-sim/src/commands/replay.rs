@@ -12,6 +12,7 @@ use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
 use crate::replay::{Replay, ReplayOptions};
 use crate::report::{RunOutputs, summary};
+use crate::run::MapFiles;
 
 /// Arguments of `replay`.
 #[derive(Debug, Args)]
@@ -59,6 +60,18 @@ pub struct ReplayArgs {
     /// keeps: 1 at QVGA (a 160x120 depth), 0 at VGA.
     #[arg(long, value_parser = depth_level_parser())]
     pub depth_level: Option<u8>,
+    /// Start in this saved map (SLAM mode): frames have no pose until one relocalizes in it,
+    /// and the run goes on in its world frame (report.json: the first pose is `relocalized`).
+    #[arg(long, value_name = "FILE")]
+    pub load_map: Option<PathBuf>,
+    /// Save the map at the end (SLAM mode): every remembered keyframe and those of the active
+    /// map, in the versioned, checksummed map format of `ferroslam_core::persist`.
+    #[arg(long, value_name = "FILE")]
+    pub save_map: Option<PathBuf>,
+    /// Localization only, in the map of `--load-map`: nothing is added to its store (a map saved
+    /// after is the loaded one).
+    #[arg(long, requires = "load_map")]
+    pub localize: bool,
 }
 
 impl ReplayArgs {
@@ -93,6 +106,11 @@ impl ReplayArgs {
         ReplayOptions {
             dataset,
             seed: self.seed,
+            maps: MapFiles {
+                load: self.load_map.clone(),
+                save: self.save_map.clone(),
+                localize: self.localize,
+            },
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
         }
     }

@@ -21,6 +21,8 @@ pub mod result;
 pub mod slam;
 pub mod source;
 
+use std::path::PathBuf;
+
 use anyhow::Result;
 use ferroslam_core::backend::BackendParams;
 use ferroslam_core::config::{HostQvga, HostVga, QVGA, Qvga, Resolution, SensorModel, Vga};
@@ -87,7 +89,7 @@ impl TrackMode {
 }
 
 /// How a tracking run is set up, apart from its source and camera.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RunOptions {
     /// The processing resolution: with the SLAM mode's map scale, it names the core's profile
     /// (QVGA: 320 x 240; VGA: 640 x 480).
@@ -103,12 +105,32 @@ pub struct RunOptions {
     /// Whether to draw a progress bar on stderr (only ever drawn on a terminal; see
     /// [`Progress`]).
     pub progress_bar: bool,
+    /// Map files the place memory starts from and is saved to (SLAM mode).
+    pub maps: MapFiles,
+}
+
+/// The map files of a SLAM run with a place memory ([`ferroslam_core::persist`]).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct MapFiles {
+    /// A map to start in: the run begins once a frame relocalizes in it, in its world frame.
+    pub load: Option<PathBuf>,
+    /// Where to save the map at the end: the remembered keyframes and those of the active map.
+    pub save: Option<PathBuf>,
+    /// Localization only: nothing is added to the loaded map's store.
+    pub localize: bool,
 }
 
 impl RunOptions {
     /// `mode` at `profile` with the core's default seed and tunables, and a progress bar.
     pub fn new(profile: Resolution, mode: TrackMode) -> Self {
-        Self { profile, mode, seed: None, sensor: SensorModel::DEFAULT, progress_bar: true }
+        Self {
+            profile,
+            mode,
+            seed: None,
+            sensor: SensorModel::DEFAULT,
+            progress_bar: true,
+            maps: MapFiles::default(),
+        }
     }
 }
 
@@ -162,11 +184,14 @@ where
         (TrackMode::Slam { quota, schedule, map, places, .. }, vga) => {
             let setup =
                 slam::Setup { quota, schedule, scale: map, frontend: slam, backend, places };
+            let m = &options.maps;
             match (map, vga) {
-                (MapScale::Board, false) => slam::run::<Qvga, S>(source, progress, cam, &setup),
-                (MapScale::Board, true) => slam::run::<Vga, S>(source, progress, cam, &setup),
-                (MapScale::Host, false) => slam::run::<HostQvga, S>(source, progress, cam, &setup),
-                (MapScale::Host, true) => slam::run::<HostVga, S>(source, progress, cam, &setup),
+                (MapScale::Board, false) => slam::run::<Qvga, S>(source, progress, cam, &setup, m),
+                (MapScale::Board, true) => slam::run::<Vga, S>(source, progress, cam, &setup, m),
+                (MapScale::Host, false) => {
+                    slam::run::<HostQvga, S>(source, progress, cam, &setup, m)
+                }
+                (MapScale::Host, true) => slam::run::<HostVga, S>(source, progress, cam, &setup, m),
             }
         }
     }

@@ -8,7 +8,7 @@ use std::collections::HashMap;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
 
 use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
@@ -22,6 +22,7 @@ use ferroslam_core::tracking::{
     FrameResult, FrontendParams, FrontendState, LoopClosure, NoPlaces, PlaceQuery, Places,
 };
 
+use super::MapFiles;
 use super::data_path::{Progress, drive};
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -199,6 +200,46 @@ impl<P: ProfileTypes> Stepper<'_, P> {
     }
 }
 
+/// Loads `maps.load` into the run's place memory (frozen when `maps.localize`).
+fn load_map(memory: &mut RunPlaces, maps: &MapFiles) -> Result<()> {
+    let RunPlaces::On(m) = memory else {
+        if maps.load.is_some() || maps.save.is_some() || maps.localize {
+            bail!("map files need the place memory: drop --no-places");
+        }
+        return Ok(());
+    };
+    if let Some(path) = &maps.load {
+        let bytes =
+            std::fs::read(path).with_context(|| format!("reading map {}", path.display()))?;
+        m.load(&bytes).map_err(|e| anyhow!("map {}: {e}; nothing loaded", path.display()))?;
+        eprintln!("map: {} keyframes loaded from {}", m.len(), path.display());
+    } else if maps.localize {
+        bail!("--localize needs a map to localize in (--load-map FILE)");
+    }
+    m.freeze(maps.localize);
+    Ok(())
+}
+
+/// Saves the run's place memory to `maps.save`, with the active `map`'s keyframes remembered
+/// first (oldest first) unless localizing (the saved map is then the loaded one).
+fn save_map<M: MapAccess>(memory: &mut RunPlaces, map: &M, maps: &MapFiles) -> Result<()> {
+    let (RunPlaces::On(m), Some(path)) = (memory, &maps.save) else { return Ok(()) };
+    let mut ids: Vec<(u32, KeyFrameId)> = map.keyframes().map(|(id, k)| (k.seq, id)).collect();
+    ids.sort_unstable();
+    for (_, id) in ids {
+        map.remember_in(m.as_mut(), id);
+    }
+    let mut file = Vec::new();
+    m.save(|b: &[u8]| -> Result<(), std::convert::Infallible> {
+        file.extend_from_slice(b);
+        Ok(())
+    })
+    .map_err(|e| anyhow!("saving the map: {e:?}"))?;
+    std::fs::write(path, &file).with_context(|| format!("writing map {}", path.display()))?;
+    eprintln!("map: {} keyframes saved to {} ({} bytes)", m.len(), path.display(), file.len());
+    Ok(())
+}
+
 /// What the place memory did over a run; the relocalized frames and those that closed a loop by
 /// their index in the order played.
 fn places_report(memory: &HostPlaces, per_frame: &[TrackedFrame]) -> PlacesReport {
@@ -260,6 +301,13 @@ impl Places for RunPlaces {
         }
     }
 
+    fn holds_places(&self) -> bool {
+        match self {
+            Self::On(m) => m.holds_places(),
+            Self::Off(n) => n.holds_places(),
+        }
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
         match self {
             Self::On(m) => m.remember(map, kf),
@@ -293,15 +341,17 @@ impl Places for RunPlaces {
 }
 
 /// Runs `source` through a boxed `Slam<P>` set up by `setup` (`setup.scale` must name `P`'s
-/// map: it is what the report says).
+/// map: it is what the report says), its place memory loaded from and saved to `maps`.
 ///
 /// # Errors
-/// As [`drive`]; a back-end error.
+/// As [`drive`]; a back-end error; a map file that cannot be read, loaded or written, or map
+/// files without a place memory.
 pub fn run<P: ProfileTypes, S>(
     source: &mut S,
     progress: Progress,
     cam: &PinholeCamera,
     setup: &Setup,
+    maps: &MapFiles,
 ) -> Result<TrackingRun>
 where
     S: FrameSource,
@@ -316,6 +366,7 @@ where
     } else {
         RunPlaces::Off(NoPlaces)
     };
+    load_map(&mut memory, maps)?;
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
     let mut stepper = Stepper {
@@ -380,6 +431,7 @@ where
         RunPlaces::On(m) => Some(places_report(m, &per_frame)),
         RunPlaces::Off(_) => None,
     };
+    save_map(&mut memory, slam.map(), maps)?;
     Ok(TrackingRun {
         data,
         camera: Trajectory::new(camera),

@@ -1,0 +1,196 @@
+//! The map file: the long-term store's records ([`crate::map::PlaceRecord`], 1 KiB each) behind
+//! a 16-byte header, so a map saved by one run can be loaded by the next.
+//!
+//! Layout (little-endian): `FSMP` (4 bytes), format version (1), 0 (1), bytes per record (2),
+//! records (4), FNV-1a checksum of every record's bytes (4); then the records, each as the store
+//! holds it (with its own checksum). A reader checks the header before it takes any record and
+//! every record before the map is used, so a file from another format, truncated or with one bit
+//! flipped is refused whole, with an error that names what is wrong ([`MapFileError`]).
+//!
+//! Not yet here (issue 48): the power-cut-safe log on the board's NOR flash and wear levelling;
+//! this format is what such a log would hold.
+
+use core::fmt;
+
+use crate::config::capacity::PLACE_RECORD_BYTES;
+
+/// The file's first bytes.
+pub const MAP_MAGIC: [u8; 4] = *b"FSMP";
+
+/// The format version this build writes and reads.
+pub const MAP_VERSION: u8 = 1;
+
+/// Bytes of the header before the records.
+pub const MAP_HEADER_BYTES: usize = 16;
+
+/// A map file's header: how many records follow and their checksum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MapHeader {
+    /// Records after the header.
+    pub records: u32,
+    /// FNV-1a of the records' bytes, in order ([`RecordsChecksum`]).
+    pub checksum: u32,
+}
+
+impl MapHeader {
+    /// The header's bytes.
+    pub fn encode(&self) -> [u8; MAP_HEADER_BYTES] {
+        let mut out = [0u8; MAP_HEADER_BYTES];
+        let record_bytes = PLACE_RECORD_BYTES as u16;
+        let fields: [&[u8]; 6] = [
+            &MAP_MAGIC,
+            &[MAP_VERSION],
+            &[0],
+            &record_bytes.to_le_bytes(),
+            &self.records.to_le_bytes(),
+            &self.checksum.to_le_bytes(),
+        ];
+        let mut at = 0;
+        for f in fields {
+            if let Some(dst) = out.get_mut(at..at + f.len()) {
+                dst.copy_from_slice(f);
+            }
+            at += f.len();
+        }
+        out
+    }
+
+    /// The header at the start of `bytes` (a whole file or its first [`MAP_HEADER_BYTES`]).
+    ///
+    /// # Errors
+    /// [`MapFileError::Truncated`], [`MapFileError::NotAMap`], [`MapFileError::Version`] or
+    /// [`MapFileError::RecordBytes`].
+    pub fn decode(bytes: &[u8]) -> Result<Self, MapFileError> {
+        let Some(h) = bytes.get(..MAP_HEADER_BYTES) else {
+            return Err(MapFileError::Truncated { expected: MAP_HEADER_BYTES, found: bytes.len() });
+        };
+        let word = |at: usize| {
+            let mut w = [0u8; 4];
+            if let Some(src) = h.get(at..at + 4) {
+                w.copy_from_slice(src);
+            }
+            u32::from_le_bytes(w)
+        };
+        if h.get(..4) != Some(&MAP_MAGIC[..]) {
+            return Err(MapFileError::NotAMap);
+        }
+        let version = h.get(4).copied().unwrap_or(0);
+        if version != MAP_VERSION {
+            return Err(MapFileError::Version(version));
+        }
+        let record_bytes =
+            u16::from_le_bytes([h.get(6).copied().unwrap_or(0), h.get(7).copied().unwrap_or(0)]);
+        if usize::from(record_bytes) != PLACE_RECORD_BYTES {
+            return Err(MapFileError::RecordBytes(record_bytes));
+        }
+        Ok(Self { records: word(8), checksum: word(12) })
+    }
+
+    /// Bytes of the whole file this header describes.
+    pub fn file_bytes(&self) -> usize {
+        MAP_HEADER_BYTES + self.records as usize * PLACE_RECORD_BYTES
+    }
+}
+
+/// FNV-1a over the records' bytes as they are written or read, one record at a time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RecordsChecksum(u32);
+
+impl Default for RecordsChecksum {
+    fn default() -> Self {
+        Self(0x811C_9DC5)
+    }
+}
+
+impl RecordsChecksum {
+    /// Adds `bytes` (the next record's).
+    pub fn add(&mut self, bytes: &[u8]) {
+        self.0 = bytes.iter().fold(self.0, |h, &b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
+    }
+
+    /// The checksum so far.
+    pub fn value(&self) -> u32 {
+        self.0
+    }
+}
+
+/// Why a map file cannot be loaded; nothing of it is loaded then.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum MapFileError {
+    /// The file is shorter than its header says (or than a header).
+    Truncated {
+        /// Bytes a whole file would have.
+        expected: usize,
+        /// Bytes it has.
+        found: usize,
+    },
+    /// It is longer than its header says.
+    TrailingBytes {
+        /// Bytes a whole file would have.
+        expected: usize,
+        /// Bytes it has.
+        found: usize,
+    },
+    /// It does not start with [`MAP_MAGIC`]: not a map file.
+    NotAMap,
+    /// A format version this build does not read.
+    Version(u8),
+    /// Records of another size: a build with other capacities wrote it.
+    RecordBytes(u16),
+    /// The records' checksum does not match the header's: bytes changed since it was written.
+    Checksum {
+        /// The header's.
+        stored: u32,
+        /// The records'.
+        computed: u32,
+    },
+    /// A record does not decode (its own checksum or format).
+    Record {
+        /// Its index in the file.
+        index: u32,
+    },
+    /// More records than the store holds.
+    TooManyRecords {
+        /// Records in the file.
+        records: u32,
+        /// Records the store holds.
+        capacity: usize,
+    },
+}
+
+impl fmt::Display for MapFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::Truncated { expected, found } => {
+                write!(f, "truncated: {found} bytes where the header says {expected}")
+            }
+            Self::TrailingBytes { expected, found } => {
+                write!(f, "{found} bytes where the header says {expected}: trailing bytes")
+            }
+            Self::NotAMap => write!(f, "not a ferroslam map file (no FSMP magic)"),
+            Self::Version(v) => {
+                write!(f, "map format version {v}; this build reads version {MAP_VERSION}")
+            }
+            Self::RecordBytes(n) => write!(
+                f,
+                "records of {n} bytes; this build's are {PLACE_RECORD_BYTES} (other capacities)"
+            ),
+            Self::Checksum { stored, computed } => write!(
+                f,
+                "checksum {computed:#010x} of the records, {stored:#010x} in the header: the \
+                 file changed since it was written"
+            ),
+            Self::Record { index } => write!(f, "record {index} does not decode"),
+            Self::TooManyRecords { records, capacity } => {
+                write!(f, "{records} records, more than the store's {capacity}")
+            }
+        }
+    }
+}
+
+impl core::error::Error for MapFileError {}
+
+#[cfg(test)]
+mod tests;
