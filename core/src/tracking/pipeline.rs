@@ -9,7 +9,7 @@ use super::places::Places;
 /// tracking at the prediction (1 without one: the frame after a loss restarts). Why:
 /// docs/decisions.md, "Five lost frames ask before tracking restarts".
 pub const RELOCALIZE_FRAMES: u32 = 5;
-use super::result::{FrameResult, FrontendState, FrontendWork, GuideStage};
+use super::result::{FrameResult, FrontendState, GuideStage};
 use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
@@ -42,21 +42,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             let _ = self.recent.motion.update(frame.timestamp_s, t_cw);
         }
         FrameResult {
-            t_wc: t_cw.inverse(),
-            state,
             tracked: made.is_some() && first,
             reinitialized: made.is_some() && !first,
-            relocalized: false,
             keyframe: made,
-            reference_keyframe: self.keyframing.reference_keyframe(),
-            inliers: 0,
-            matches: 0,
-            guide_matches: 0,
-            guide_stage: GuideStage::None,
-            tracked_landmarks: 0,
-            keyframe_landmarks: (0, 0, 0),
-            work: FrontendWork::default(),
-            loop_closure: None,
+            ..FrameResult::untracked(t_cw.inverse(), state, self.keyframing.reference_keyframe())
         }
     }
 
@@ -77,23 +66,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 return FrameResult { tracked: false, relocalized: true, ..r };
             }
         }
-        FrameResult {
-            t_wc: Pose::identity(),
-            state: FrontendState::Initializing,
-            tracked: false,
-            reinitialized: false,
-            relocalized: false,
-            keyframe: None,
-            reference_keyframe: None,
-            inliers: 0,
-            matches: 0,
-            guide_matches: 0,
-            guide_stage: GuideStage::None,
-            tracked_landmarks: 0,
-            keyframe_landmarks: (0, 0, 0),
-            work: FrontendWork::default(),
-            loop_closure: None,
-        }
+        FrameResult::untracked(Pose::identity(), FrontendState::Initializing, None)
     }
 
     /// Tracks the local map; on failure, relocalizes in a remembered place, or else
@@ -138,22 +111,12 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             summary.estimate.is_none() || summary.matches == self.scratch.correspondences.len(),
             "the scratch does not hold the winning final stage"
         );
+        let reference = self.keyframing.reference_keyframe();
         let lost = FrameResult {
-            t_wc: predicted_t_cw.inverse(),
-            state: FrontendState::Lost,
-            tracked: false,
-            reinitialized: false,
-            relocalized: false,
-            keyframe: None,
-            reference_keyframe: self.keyframing.reference_keyframe(),
-            inliers: 0,
             matches: summary.matches,
             guide_matches: summary.guides,
             guide_stage: summary.stage,
-            tracked_landmarks: 0,
-            keyframe_landmarks: (0, 0, 0),
-            work: FrontendWork::default(),
-            loop_closure: None,
+            ..FrameResult::untracked(predicted_t_cw.inverse(), FrontendState::Lost, reference)
         };
         if summary.stage == GuideStage::AffineBank {
             self.stats.bank_recoveries = self.stats.bank_recoveries.saturating_add(1);

@@ -127,6 +127,32 @@ pub enum GuideStage {
 }
 
 impl FrameResult {
+    /// A frame at `t_wc` in `state` that nothing tracked, matched, made or closed (a frame's
+    /// result before what happened to it is filled in), attached to `reference_keyframe`.
+    pub(super) fn untracked(
+        t_wc: Pose,
+        state: FrontendState,
+        reference_keyframe: Option<KeyFrameId>,
+    ) -> Self {
+        Self {
+            t_wc,
+            state,
+            tracked: false,
+            reinitialized: false,
+            relocalized: false,
+            keyframe: None,
+            reference_keyframe,
+            inliers: 0,
+            matches: 0,
+            guide_matches: 0,
+            guide_stage: GuideStage::None,
+            tracked_landmarks: 0,
+            keyframe_landmarks: (0, 0, 0),
+            work: FrontendWork::default(),
+            loop_closure: None,
+        }
+    }
+
     /// What became of the frame.
     pub fn outcome(&self) -> FrameOutcome {
         match (self.tracked, self.reinitialized, self.state) {
