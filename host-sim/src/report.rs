@@ -113,7 +113,7 @@ pub struct Loops {
     /// Loop detection's counters.
     #[serde(flatten)]
     pub stats: LoopStats,
-    /// The frames whose keyframe closed a loop, 0-based, in the order played.
+    /// The frames on which a loop closed, 0-based, in the order played.
     pub frames: Vec<usize>,
 }
 

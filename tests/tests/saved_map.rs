@@ -40,11 +40,7 @@ fn a_saved_map_is_where_the_next_run_starts() {
     let first = play(&mut slam, &mut places, 0, 100);
     assert!(first.iter().all(|(o, _)| *o != FrameOutcome::Lost));
     // Save: the remembered keyframes and those still in the map.
-    let mut ids: Vec<_> = slam.map().keyframes().map(|(id, k)| (k.seq, id)).collect();
-    ids.sort_unstable();
-    for (_, id) in ids {
-        slam.map().remember_in(places.as_mut(), id);
-    }
+    slam.map().remember_all_in(places.as_mut());
     let mut file = Vec::new();
     places
         .save(|b: &[u8]| -> Result<(), ()> {

@@ -8,8 +8,8 @@
 //!   [`PLACE_POINTS`] observed landmarks with a descriptor
 //!   (in its camera frame) become a [`PlaceRecord`] in the next free slot. A full store thins
 //!   itself: the new record replaces, among the stored ones that look most like it, the one
-//!   nearest to it in pose (the most redundant), never failing and never growing. Its key's [`KeyBits`] go to a RAM index by slot (24 bytes
-//!   a record).
+//!   nearest to it in pose (the most redundant), never failing and never growing. Its key's
+//!   [`KeyBits`] go to a RAM index by slot (24 bytes a record).
 //! - **Relocalize** (a lost frame): the index gives the [`SHORTLIST`] records nearest by key
 //!   bits; their keys and every key of the active map's keyframes are compared with the frame's;
 //!   the [`CANDIDATES`] nearest are verified (`verify.rs`: descriptor matches,
@@ -21,9 +21,8 @@
 //!   active map's keyframes made after tracking last restarted left out.
 //!
 //! Cost: a query passes over the index once, decodes [`SHORTLIST`] records and [`CANDIDATES`]
-//! of them again, whatever the store holds; each
-//! verification is bounded by [`PLACE_POINTS`] x the
-//! query's points descriptor comparisons and [`RANSAC_ITERATIONS`] minimal solves.
+//! of them again, whatever the store holds; each verification is bounded by [`PLACE_POINTS`] x
+//! the query's points descriptor comparisons and [`RANSAC_ITERATIONS`] minimal solves.
 //! Deterministic: the RANSAC draws come from a generator seeded by the caller. Why this design:
 //! docs/decisions.md, "Place memory: what a keyframe leaves behind".
 
@@ -71,7 +70,7 @@ pub const AMBIGUITY_RATIO: f32 = 0.8;
 /// [`LOOP_MIN_CORRECTION_RAD`] is consistent with the map and corrects nothing: a single view's
 /// verified pose is not more accurate than that.
 pub const LOOP_MIN_CORRECTION_M: f32 = 0.10;
-/// See [`LOOP_MIN_CORRECTION_M`] (radians, about 1 degree).
+/// See [`LOOP_MIN_CORRECTION_M`] (radians, about 5 degrees).
 pub const LOOP_MIN_CORRECTION_RAD: f32 = 0.087;
 
 /// What loop detection did, counted since the place memory was made (serializable for reports).
@@ -214,7 +213,8 @@ impl<S: KeyframeStore> PlaceMemory<S> {
 
     /// Replaces what the memory holds by the map file `file` ([`crate::persist`]): the header,
     /// the length, the checksum and every record are checked first, and nothing is taken unless
-    /// all hold. Cost: every record decoded once and written to the store once.
+    /// all hold. Cost: every record decoded twice (checked, then indexed) and written to the
+    /// store once.
     ///
     /// # Errors
     /// What is wrong with the file ([`MapFileError`]); the memory is unchanged then. A store that
@@ -421,9 +421,9 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             return None;
         }
         self.loops.queries = self.loops.queries.saturating_add(1);
-        let (t_wc, record_seq, record_timestamp_s, t_rq) =
+        let (t_wc, record_seq, record_timestamp_s) =
             match self.locate(query, map, Candidates::Before(track_start)) {
-                Located::At(t_wc, s, ts, t_rq) => (t_wc, s, ts, t_rq),
+                Located::At(t_wc, s, ts) => (t_wc, s, ts),
                 Located::Ambiguous => {
                     self.loops.rejected = self.loops.rejected.saturating_add(1);
                     return None;
@@ -445,7 +445,7 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             return None;
         }
         self.loops.accepted = self.loops.accepted.saturating_add(1);
-        Some(LoopClosure { record_seq, record_timestamp_s, t_rq, keyframe_seq: seq, correction })
+        Some(LoopClosure { record_seq, record_timestamp_s, keyframe_seq: seq, correction })
     }
 }
 
@@ -462,9 +462,8 @@ enum Candidates {
 /// Where a query put the frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Located {
-    /// At `t_wc`, verified in the place of this keyframe creation number (timestamp, and
-    /// the query's pose in its camera).
-    At(Pose, u32, f64, Pose),
+    /// At `t_wc`, verified in the place of this keyframe creation number (and timestamp).
+    At(Pose, u32, f64),
     /// Two places verified different poses.
     Ambiguous,
     /// No place verified.
@@ -523,7 +522,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             pose_distance(t, &t_wc) > AMBIGUITY_DISTANCE
                 && v.inliers as f32 >= AMBIGUITY_RATIO * best.inliers as f32
         });
-        if rival { Located::Ambiguous } else { Located::At(t_wc, seq, ts, best.t_rq) }
+        if rival { Located::Ambiguous } else { Located::At(t_wc, seq, ts) }
     }
 }
 

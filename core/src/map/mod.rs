@@ -42,8 +42,9 @@ use nalgebra::Point3;
 pub use arena::{Arena, Handle};
 pub use observation::Observation;
 pub use place::{
-    FlashStore, FlashStoreError, KEY_BITS_WORDS, KeyBits, KeyframeStore, NoStore, PLACE_KEY_CELLS,
-    PlaceKey, PlacePoint, PlaceRecord, RamStore, RecordBytes, RecordError, SlotOutOfRange,
+    FlashStore, FlashStoreError, Fnv1a, KEY_BITS_WORDS, KeyBits, KeyframeStore, NoStore,
+    PLACE_KEY_CELLS, PlaceKey, PlacePoint, PlaceRecord, RamStore, RecordBytes, RecordError,
+    SlotOutOfRange,
 };
 
 use crate::config::{BOARD_MAP, HOST_MAP, capacity};

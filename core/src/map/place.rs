@@ -180,9 +180,34 @@ impl fmt::Display for RecordError {
 
 impl core::error::Error for RecordError {}
 
-/// FNV-1a over `bytes`: the record checksum (deterministic, no table).
+/// FNV-1a (32-bit), fed in pieces: the record checksum, and the map file's over its records
+/// (deterministic, no table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fnv1a(u32);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Self(0x811C_9DC5)
+    }
+}
+
+impl Fnv1a {
+    /// Adds `bytes` to what was fed so far.
+    pub fn add(&mut self, bytes: &[u8]) {
+        self.0 = bytes.iter().fold(self.0, |h, &b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
+    }
+
+    /// The checksum of everything fed so far.
+    pub fn value(&self) -> u32 {
+        self.0
+    }
+}
+
+/// FNV-1a over `bytes`.
 fn fnv1a(bytes: &[u8]) -> u32 {
-    bytes.iter().fold(0x811C_9DC5, |h, &b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193))
+    let mut h = Fnv1a::default();
+    h.add(bytes);
+    h.value()
 }
 
 /// A writer of little-endian fields into a record.

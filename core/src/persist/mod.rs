@@ -13,6 +13,7 @@
 use core::fmt;
 
 use crate::config::capacity::PLACE_RECORD_BYTES;
+use crate::map::Fnv1a;
 
 /// The file's first bytes.
 pub const MAP_MAGIC: [u8; 4] = *b"FSMP";
@@ -92,27 +93,9 @@ impl MapHeader {
     }
 }
 
-/// FNV-1a over the records' bytes as they are written or read, one record at a time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RecordsChecksum(u32);
-
-impl Default for RecordsChecksum {
-    fn default() -> Self {
-        Self(0x811C_9DC5)
-    }
-}
-
-impl RecordsChecksum {
-    /// Adds `bytes` (the next record's).
-    pub fn add(&mut self, bytes: &[u8]) {
-        self.0 = bytes.iter().fold(self.0, |h, &b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193));
-    }
-
-    /// The checksum so far.
-    pub fn value(&self) -> u32 {
-        self.0
-    }
-}
+/// FNV-1a over the records' bytes as they are written or read, one record at a time (the
+/// record checksum's hash).
+pub type RecordsChecksum = Fnv1a;
 
 /// Why a map file cannot be loaded; nothing of it is loaded then.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -69,9 +69,9 @@ pub trait MapAccess {
     fn keyframes(&self) -> impl Iterator<Item = (KeyFrameId, &KeyFrame)> + '_;
     /// Every landmark, in slot order.
     fn landmarks(&self) -> impl Iterator<Item = (LandmarkId, &Landmark)> + '_;
-    /// Hands keyframe `kf` to `places` to be remembered (as when it leaves the map; it stays in
-    /// the map): what saving a map does with the active keyframes.
-    fn remember_in(&self, places: &mut impl Places, kf: KeyFrameId);
+    /// Hands every keyframe to `places` to be remembered, oldest first, as when it leaves the map
+    /// (they stay in the map): what saving a map does with the active keyframes.
+    fn remember_all_in(&self, places: &mut impl Places);
 }
 
 /// A back end adjusting a map of type `M` in bounded steps.
@@ -149,8 +149,16 @@ impl<const K: usize, const L: usize> MapAccess for Map<K, L> {
         Map::landmarks(self)
     }
 
-    fn remember_in(&self, places: &mut impl Places, kf: KeyFrameId) {
-        places.remember(self, kf);
+    fn remember_all_in(&self, places: &mut impl Places) {
+        let mut oldest_first: heapless::Vec<(u32, KeyFrameId), K> = heapless::Vec::new();
+        for (id, k) in Map::keyframes(self) {
+            // At most K keyframes: cannot fail.
+            let _ = oldest_first.push((k.seq, id));
+        }
+        oldest_first.sort_unstable_by_key(|&(seq, _)| seq);
+        for (_, id) in oldest_first {
+            places.remember(self, id);
+        }
     }
 }
 

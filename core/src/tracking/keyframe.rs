@@ -6,7 +6,7 @@ use nalgebra::Point2;
 
 use super::local_map::{PATCH_SIDE, TrackedLandmark};
 use super::map_reuse::{FEATURE_WORDS, FeatureSet, contains};
-use super::places::{PlaceQuery, Places, QueryPoint};
+use super::places::{LoopClosure, PlaceQuery, Places, QueryPoint};
 use super::tracker::FrameTracker;
 use crate::config::capacity;
 use crate::features::{Descriptor, Feature, HessianParams};
@@ -117,10 +117,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Asks the place memory whether keyframe `kf` of `map` closes a loop, its observed
     /// landmarks with a descriptor (in its camera) as the query; when it does, moves the map
     /// tracked since the last re-initialization (the keyframes from `track_start` on, the
-    /// landmarks they host) and this tracker's state by the correction, and keeps the loop for
-    /// the frame's result. The caller runs it on a cheap frame after the keyframe's (the
-    /// keyframe's own frame is the costliest kind); `size` is the tracking level's. Cost: one pass over the keyframe's
-    /// observations, then the place memory's query.
+    /// landmarks they host) and this tracker's state by the correction, and returns the loop
+    /// (the frame's pose is the caller's to move). The caller runs it on a cheap frame after the
+    /// keyframe's (the keyframe's own frame is the costliest kind); `size` is the tracking
+    /// level's. Cost: one pass over the keyframe's observations, then the place memory's query.
     #[inline(never)]
     pub(super) fn close_loop<const K: usize, const L: usize>(
         &mut self,
@@ -128,8 +128,8 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         places: &mut impl Places,
         kf: KeyFrameId,
         size: (usize, usize),
-    ) {
-        let Some(k) = map.keyframe(kf) else { return };
+    ) -> Option<LoopClosure> {
+        let k = map.keyframe(kf)?;
         let t_cw = k.t_wc.inverse();
         let mut points: Vec<QueryPoint, MAX_OBSERVATIONS_PER_KEYFRAME> = Vec::new();
         for obs in &k.observations {
@@ -138,7 +138,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             let _ = points.push(QueryPoint { uv: obs.uv(), p_c: t_cw * lm.p_w, descriptor });
         }
         let query = PlaceQuery { key: k.place_key, points: &points, size };
-        let Some(closure) = places.close_loop(&query, map, kf, self.track_start) else { return };
+        let closure = places.close_loop(&query, map, kf, self.track_start)?;
         let c = closure.correction;
         map.move_world_from(self.track_start, &c);
         for t in self.local.items_mut() {
@@ -148,7 +148,7 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             *t_wk = c * *t_wk;
         }
         self.recent.motion.move_world(&c);
-        self.closed = Some(closure);
+        Some(closure)
     }
 
     /// The detected features of `frame` with valid depth, as query points with descriptors (at

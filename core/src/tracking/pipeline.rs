@@ -4,16 +4,16 @@
 use super::keyframe_rule::KeyframeDecision;
 use super::landmark_matching::Bank;
 use super::places::Places;
-
-/// Frames in a row a front end with a place memory stays lost, asking it, before it restarts
-/// tracking at the prediction (1 without one: the frame after a loss restarts). Why:
-/// docs/decisions.md, "Five lost frames ask before tracking restarts".
-pub const RELOCALIZE_FRAMES: u32 = 5;
 use super::result::{FrameResult, FrontendState, GuideStage};
 use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::map::Map;
+
+/// Frames in a row a front end with a place memory stays lost, asking it, before it restarts
+/// tracking at the prediction (1 without one: the frame after a loss restarts). Why:
+/// docs/decisions.md, "Five lost frames ask before tracking restarts".
+pub const RELOCALIZE_FRAMES: u32 = 5;
 
 impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Starts (or restarts) tracking from a keyframe made of `frame` at `t_cw`.
@@ -149,20 +149,24 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             }
         };
         self.cull_local_map();
-        // The last keyframe looks for a loop on a frame that made none and ran no costly step.
+        // The last keyframe looks for a loop on a frame that made none and ran no costly step;
+        // a loop moves the map, and this frame's pose with it.
+        let mut loop_closure = None;
         if keyframe.is_none()
             && !self.work.is_costly()
             && let Some(kf) = self.loop_pending.take()
         {
-            self.close_loop(map, places, kf, frame.gray.size());
+            loop_closure = self.close_loop(map, places, kf, frame.gray.size());
         }
+        let t_wc = est.t_cw.inverse();
         FrameResult {
-            t_wc: est.t_cw.inverse(),
+            t_wc: loop_closure.map_or(t_wc, |c| c.correction * t_wc),
             state: FrontendState::Tracking,
             tracked: true,
             keyframe,
             reference_keyframe: self.keyframing.reference_keyframe(),
             inliers: est.num_inliers,
+            loop_closure,
             ..lost
         }
     }

@@ -40,8 +40,6 @@ pub struct LoopClosure {
     pub record_seq: u32,
     /// Its timestamp, seconds.
     pub record_timestamp_s: f64,
-    /// DEBUG the new keyframe's pose in the remembered keyframe's camera.
-    pub t_rq: Pose,
     /// Creation number of the new keyframe.
     pub keyframe_seq: u32,
     /// The rigid motion from the map's world frame to the remembered one (`T_new_old`): applied

@@ -77,8 +77,9 @@ pub struct FrameResult {
     pub keyframe_landmarks: (usize, usize, usize),
     /// The costly steps the front end ran on this frame (what its cost is made of).
     pub work: FrontendWork,
-    /// The loop this frame's keyframe closed: the active map was moved by its correction, and
-    /// `t_wc` is in the corrected frame (it jumps from the previous frame's by the correction).
+    /// The loop closed on this frame (for the last keyframe made, which looks for one on the
+    /// first cheap frame after it): the map was moved by its correction, and `t_wc` is in the
+    /// corrected frame (it jumps from the previous frame's by the correction).
     pub loop_closure: Option<LoopClosure>,
 }
 

@@ -8,7 +8,7 @@ use heapless::Vec;
 use super::FrontendParams;
 use super::keyframe_rule::KeyframeRule;
 use super::local_map::BoardLocalMap;
-use super::places::{LoopClosure, Places};
+use super::places::Places;
 use super::result::{
     FrameOutcome, FrameResult, FrontendError, FrontendState, FrontendStats, FrontendWork,
 };
@@ -44,8 +44,6 @@ pub struct FrameTracker<const W: usize, const H: usize> {
     pub(super) frame_index: u32,
     /// The costly steps run on the frame being processed.
     pub(super) work: FrontendWork,
-    /// The loop the frame being processed closed, if any.
-    pub(super) closed: Option<LoopClosure>,
     /// The last keyframe made while tracking, until a cheap frame asks whether it closes a loop.
     pub(super) loop_pending: Option<KeyFrameId>,
     /// Creation number of the keyframe tracking last re-initialized at (0 before any): the map
@@ -152,7 +150,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 rotation_estimated: false,
                 detected: false,
             },
-            closed: None,
             loop_pending: None,
             track_start: 0,
         }
@@ -201,7 +198,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         self.stats.frames = self.stats.frames.saturating_add(1);
         self.frame_index = self.frame_index.wrapping_add(1);
         self.work = FrontendWork::default();
-        self.closed = None;
         self.recent.small_current.build(&frame.gray);
         // Ids of a map the caller cleared or replaced no longer resolve: start over then.
         if self.keyframing.reference.is_some_and(|(id, _)| map.keyframe(id).is_none()) {
@@ -214,13 +210,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             self.initialize(frame, cam, map, places, &predicted_t_cw)
         } else {
             self.track_or_recover(frame, cam, map, places, &predicted_t_cw)
-        };
-        // A loop closed at this frame's keyframe moved the map: its pose follows.
-        let result = match self.closed {
-            Some(c) => {
-                FrameResult { t_wc: c.correction * result.t_wc, loop_closure: Some(c), ..result }
-            }
-            None => result,
         };
         let s = &mut self.stats;
         let count = match result.outcome() {

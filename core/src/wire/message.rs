@@ -55,8 +55,8 @@ impl PoseFlags {
     /// Tracking restarted at this frame in a remembered place that geometric verification
     /// accepted: the pose is in the map's frame and may jump from the previous frame's.
     pub const RELOCALIZED: u8 = 1 << 4;
-    /// The frame's keyframe closed a loop: the map and this pose moved by the loop's correction
-    /// (the pose may jump from the previous frame's).
+    /// A loop closed on this frame (for the last keyframe): the map and this pose moved by the
+    /// loop's correction (the pose may jump from the previous frame's).
     pub const LOOP_CLOSED: u8 = 1 << 5;
 
     /// Whether every bit of `flag` is set.

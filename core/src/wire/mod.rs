@@ -54,7 +54,7 @@ pub use message::{
 ///   `backend_ticks`, replacing version 1's `process_ticks`).
 /// - 3: [`StatusMessage`] counts re-initialisations and relocalizations; [`PoseFlags::RELOCALIZED`]
 ///   marks a relocalized frame.
-/// - 4: [`PoseFlags::LOOP_CLOSED`] marks a frame whose keyframe closed a loop.
+/// - 4: [`PoseFlags::LOOP_CLOSED`] marks a frame on which a loop closed.
 pub const SCHEMA_VERSION: u8 = 4;
 
 /// Bytes of the CRC at the end of a payload.

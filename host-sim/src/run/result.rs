@@ -33,8 +33,7 @@ pub struct TrackedFrame {
     pub reinitialized: bool,
     /// Whether tracking restarted at this frame in a verified remembered place.
     pub relocalized: bool,
-    /// Whether this frame's keyframe closed a loop (the map and its pose moved by the
-    /// correction).
+    /// Whether a loop closed on this frame (the map and its pose moved by the correction).
     pub loop_closed: bool,
     /// Final stages run (the rerun of the winning one included).
     pub final_stages: u8,
@@ -61,7 +60,7 @@ pub struct PlacesReport {
     pub relocalized_frames: Vec<usize>,
     /// Loop detection's counters (see `loops::LoopStats`).
     pub loops: LoopStats,
-    /// The frames (0-based, in the order played) whose keyframe closed a loop.
+    /// The frames (0-based, in the order played) on which a loop closed.
     pub loop_frames: Vec<usize>,
 }
 

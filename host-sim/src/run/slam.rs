@@ -224,11 +224,7 @@ fn load_map(memory: &mut RunPlaces, maps: &MapFiles) -> Result<()> {
 /// first (oldest first) unless localizing (the saved map is then the loaded one).
 fn save_map<M: MapAccess>(memory: &mut RunPlaces, map: &M, maps: &MapFiles) -> Result<()> {
     let (RunPlaces::On(m), Some(path)) = (memory, &maps.save) else { return Ok(()) };
-    let mut ids: Vec<(u32, KeyFrameId)> = map.keyframes().map(|(id, k)| (k.seq, id)).collect();
-    ids.sort_unstable();
-    for (_, id) in ids {
-        map.remember_in(m.as_mut(), id);
-    }
+    map.remember_all_in(m.as_mut());
     let mut file = Vec::new();
     m.save(|b: &[u8]| -> Result<(), std::convert::Infallible> {
         file.extend_from_slice(b);
