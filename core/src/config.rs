@@ -40,8 +40,12 @@ pub mod capacity {
     pub const PLACE_KEY_H: usize = 12;
     /// Bytes of one remembered keyframe in the long-term store (a fixed-size record).
     pub const PLACE_RECORD_BYTES: usize = 1024;
-    /// Keyframes the board's long-term store holds: 512 records of 1 KiB, 512 KiB of flash.
-    pub const BOARD_STORE_KEYFRAMES: usize = 512;
+    /// Keyframes the board's long-term store holds: 500 records of 1 KiB, in
+    /// [`BOARD_STORE_FLASH_BYTES`] of flash with the store's tables and spare units.
+    pub const BOARD_STORE_KEYFRAMES: usize = 500;
+    /// Bytes of flash the board's long-term store takes: 512 KiB (the persistence layer checks
+    /// that its tables, the records and its spare units fill it).
+    pub const BOARD_STORE_FLASH_BYTES: usize = 512 * 1024;
 }
 
 /// The capacities of a map and of the back end that adjusts it.

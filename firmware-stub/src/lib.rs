@@ -11,8 +11,6 @@
 //! - [`stream`]: the board's only frame store, a QVGA pair filled two sensor rows at a time.
 //! - [`pipeline`]: the core's processing ([`pipeline::Pipeline`]) and the one step that wires a
 //!   frame source, the pipeline and a telemetry sink ([`pipeline::run_frame`]).
-//! - [`flash_region`]: a memory region with NOR flash semantics, where the QEMU board keeps its
-//!   long-term store of remembered keyframes (the stand-in for the board's flash).
 //! - [`serial`]: the serial link, a [`TelemetrySink`](ferroslam_core::frame::TelemetrySink) over
 //!   `embedded_io::Write` framing messages with postcard + CRC-32 + COBS (`ferroslam_core::wire`).
 //! - [`frame_file`]: the raw frame file (header, gray u8, depth u16 LE) that recorded frames travel
@@ -31,7 +29,6 @@ pub mod camera;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod cmsdk_uart;
-pub mod flash_region;
 pub mod frame_file;
 pub mod pipeline;
 #[cfg(target_os = "none")]

@@ -13,6 +13,7 @@
 //! - [`serial`]: the firmware's UART captures decoded, and host writers of the telemetry port;
 //! - [`run`]: runs of the data path, odometry and SLAM over any frame source: the library API
 //!   behind `replay` and `demo`, which xtask and the tests call;
+//! - [`map_file`]: saved map files read and checked whole, summarized, written as PLY;
 //! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
 //! - [`replay`] and [`demo`]: a recorded folder or the synthetic sequence opened, run and written
 //!   out, returning the typed report: what `ferroslam-sim replay` and `demo` do, which xtask
@@ -24,6 +25,7 @@ pub mod dataset;
 pub mod demo;
 pub mod eval;
 pub mod frame;
+pub mod map_file;
 pub mod plot;
 pub mod replay;
 pub mod report;

@@ -20,10 +20,11 @@ use ferroslam_core::features::{Feature, FeatureVec, QvgaHessianDetector, VgaHess
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::image::{DepthView, GrayView};
-use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::loops::{INDEXED_RECORDS, PlaceMemory};
 use ferroslam_core::map::{
     BoardMap, HostMap, KeyFrame, Landmark, NoStore, Observation, PLACE_KEY_CELLS,
 };
+use ferroslam_core::persist::{FlashStore, MAX_RECORD_UNITS, SliceFlash, TABLE_SLOTS};
 use ferroslam_core::pose::small_image_rotation::SmallImage;
 use ferroslam_core::pose::{InlierMask, MotionModel, PoseEstimate};
 use ferroslam_core::system::{HostQvga, QvgaSlam, Slam, VgaSlam};
@@ -111,9 +112,18 @@ pub fn core_structures() -> Vec<Structure> {
         ),
         row::<PlaceMemory<NoStore>>(
             "loops::PlaceMemory",
-            "the place memory beside its store: the RAM index of 512 records' key bits (24 B \
-             each), one record's buffer (1 KiB), counters, RANSAC state; the store itself is a \
-             port (flash on a board, RAM on the host)",
+            format!(
+                "the place memory beside its store: the RAM index of {INDEXED_RECORDS} records' \
+                 key bits (24 B each), one record's buffer (1 KiB), counters, RANSAC state; the \
+                 store itself is a port (flash on a board, RAM on the host)"
+            ),
+        ),
+        row::<FlashStore<SliceFlash<'static>>>(
+            "persist::FlashStore",
+            format!(
+                "the board's durable store in RAM: its table of {TABLE_SLOTS} slots' units (2 B \
+                 each) and two bitmaps of {MAX_RECORD_UNITS} units; the records are in flash"
+            ),
         ),
         row::<BoardMap>(
             "map::BoardMap",

@@ -187,6 +187,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
                 frames: None,
                 out: opts.out.clone(),
                 qemu_args: Vec::new(),
+                maps: Default::default(),
             };
             replay::run(root, &replay)?;
             opts.out.clone()

@@ -11,6 +11,7 @@ use ferroslam_sim::run::TrackMode;
 
 use crate::cargo::{cargo, cargo_with_env};
 use crate::paths::{SEVEN_SCENES, SEVEN_SCENES_CALIBRATION, THUMB, ci_out, root};
+use crate::replay::BoardMaps;
 use crate::sim::{JumpBack, replay_jump_back, replay_with_bar};
 
 /// One named step of the pipeline, timed.
@@ -127,14 +128,80 @@ const FIRMWARE_REPLAY_FRAMES: usize = 1000;
 /// The firmware in QEMU on the first frames of 7-Scenes and on the second recording of the
 /// budgets ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`).
 fn firmware_replay() -> Result<()> {
-    seven_scenes_on_the_board(None, firmware_replay_dir())?;
+    seven_scenes_on_the_board(None, firmware_replay_dir(), BoardMaps::default())?;
     crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
-    firmware_jump_back()
+    firmware_jump_back()?;
+    firmware_power_cycle()
+}
+
+/// The frames of 7-Scenes the board maps and saves, then localizes in after a second boot.
+const FIRMWARE_SAVE_FRAMES: &str = "0-499";
+const FIRMWARE_LOCALIZE_FRAMES: &str = "500-999";
+/// Frames of the second boot by which its first pose must be relocalized (issue 48's bar).
+const FIRST_RELOCALIZED_WITHIN: usize = 5;
+
+/// Issue 48 on the board: a run on 7-Scenes [`FIRMWARE_SAVE_FRAMES`] saves its map to the flash
+/// region, and the map in the flash image is the host replay's saved map byte for byte; a second
+/// boot with that flash image localizes on [`FIRMWARE_LOCALIZE_FRAMES`], every pose bit-identical
+/// to the host replay that loads the host's map, relocalized within
+/// [`FIRST_RELOCALIZED_WITHIN`] frames, with the RAM bar held (static RAM + peak stack).
+fn firmware_power_cycle() -> Result<()> {
+    let first = ci_out("firmware-save-map");
+    let save = BoardMaps { save: true, ..Default::default() };
+    seven_scenes_on_the_board(Some(FIRMWARE_SAVE_FRAMES), first.clone(), save)?;
+    let second = ci_out("firmware-boot-saved-map");
+    let boot = BoardMaps { boot_from: Some(first), localize: true, save: false };
+    seven_scenes_on_the_board(Some(FIRMWARE_LOCALIZE_FRAMES), second.clone(), boot)?;
+    let capture = ferroslam_sim::serial::decode_capture(&std::fs::read(second.join("uart.bin"))?);
+    let first_relocalized = capture
+        .poses()
+        .position(|p| p.flags.contains(ferroslam_core::wire::PoseFlags::RELOCALIZED));
+    let first = match first_relocalized {
+        Some(i) if i < FIRST_RELOCALIZED_WITHIN => i,
+        other => bail!(
+            "firmware, second boot: first relocalized frame {other:?}, wanted within the first \
+             {FIRST_RELOCALIZED_WITHIN}"
+        ),
+    };
+    let cost: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(second.join("cost.json"))?)?;
+    // Boot cost: the store's mount and index (the firmware's log), then the pipeline of every
+    // frame up to the first relocalized one (frame acquisition through semihosting left out).
+    let log = std::fs::read_to_string(second.join("firmware.log"))?;
+    let mount = log
+        .lines()
+        .find_map(|l| l.split("mounted and indexed in ").nth(1))
+        .and_then(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
+        .ok_or_else(|| anyhow::anyhow!("the second boot's log has no mount figure"))?;
+    let frames: u64 = (0..=first)
+        .map(|i| cost["per_frame"][i]["pipeline_instructions"].as_u64().unwrap_or(0))
+        .sum();
+    eprintln!(
+        "firmware, second boot: relocalized in the saved map at its frame {first}; boot to that \
+         pose: store mounted and indexed in {:.2} M instructions + {:.2} M of pipeline = {:.2} M",
+        mount as f64 / 1e6,
+        frames as f64 / 1e6,
+        (mount + frames) as f64 / 1e6
+    );
+    let ram = |k: &str| cost["firmware"][k].as_u64().unwrap_or(u64::MAX);
+    let total = ram("static_ram_bytes").saturating_add(ram("stack_peak_bytes"));
+    let doc = std::fs::read_to_string(root().join("memory-budget.md"))?;
+    let bar = crate::budget_doc::parse_block(&doc)?
+        .into_iter()
+        .find(|b| b.key == "qvga.ram_total_bytes")
+        .map(|b| b.bar)
+        .ok_or_else(|| anyhow::anyhow!("memory-budget.md has no qvga.ram_total_bytes"))?;
+    eprintln!("firmware, second boot: static RAM + peak stack {total} B (bar {bar} B)");
+    if total > bar {
+        bail!("firmware, second boot: static RAM + peak stack {total} B over the bar {bar} B");
+    }
+    Ok(())
 }
 
 /// The firmware replay of 7-Scenes (at most [`FIRMWARE_REPLAY_FRAMES`], in the order `frames`
-/// gives, or the recording's) into `out`, compared with the host's.
-fn seven_scenes_on_the_board(frames: Option<&str>, out: PathBuf) -> Result<()> {
+/// gives, or the recording's) into `out`, compared with the host's, with `maps` saved or booted
+/// from.
+fn seven_scenes_on_the_board(frames: Option<&str>, out: PathBuf, maps: BoardMaps) -> Result<()> {
     let opts = crate::replay::ReplayOptions {
         dataset: root().join(SEVEN_SCENES),
         calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
@@ -142,6 +209,7 @@ fn seven_scenes_on_the_board(frames: Option<&str>, out: PathBuf) -> Result<()> {
         frames: frames.map(str::parse).transpose()?,
         out,
         qemu_args: Vec::new(),
+        maps,
     };
     crate::replay::run(&root(), &opts)
 }
@@ -155,7 +223,7 @@ const FIRMWARE_JUMP_BACK: &str = "0-520,100-130";
 /// relocalization, from its flash store.
 fn firmware_jump_back() -> Result<()> {
     let out = ci_out("firmware-replay-jump-back");
-    seven_scenes_on_the_board(Some(FIRMWARE_JUMP_BACK), out.clone())?;
+    seven_scenes_on_the_board(Some(FIRMWARE_JUMP_BACK), out.clone(), BoardMaps::default())?;
     let relocalizations =
         crate::cost::FirmwareRun::read(&out.join("cost.json"))?.status.relocalizations;
     eprintln!(

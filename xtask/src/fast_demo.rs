@@ -41,6 +41,7 @@ pub fn write_and_replay(root: &Path, out: &Path) -> Result<()> {
         frames: None,
         out: out.to_path_buf(),
         qemu_args: Vec::new(),
+        maps: Default::default(),
     };
     replay::run(root, &replay)
 }

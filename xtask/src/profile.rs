@@ -66,6 +66,7 @@ pub fn run(args: &[String]) -> Result<()> {
             "-plugin".into(),
             format!("{},out={}", plugin.display(), blocks_file.display()),
         ],
+        maps: Default::default(),
     };
     replay::run(&root, &replay)?;
     let frames = FirmwareRun::read(&out.join("cost.json"))?.frames.len();

@@ -26,8 +26,11 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
+use ferroslam_core::config::capacity::PLACE_RECORD_BYTES;
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::persist::{FlashStore, MAP_HEADER_BYTES, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
@@ -68,7 +71,28 @@ pub struct ReplayOptions {
     pub out: PathBuf,
     /// More QEMU arguments (`profile-firmware`'s `-plugin`); none from the command line.
     pub qemu_args: Vec<String>,
+    /// What the run starts from and saves (`--save-map`, `--boot-from DIR`, `--localize`).
+    pub maps: BoardMaps,
 }
+
+/// The saved maps of a firmware replay: the board's flash image and the host's map file.
+#[derive(Debug, Clone, Default)]
+pub struct BoardMaps {
+    /// Save at the end: the firmware commits its store and writes the flash region to
+    /// `flash.bin`, the host replay saves `host-map.fsmp`, and the map in the flash image must be
+    /// the host's byte for byte.
+    pub save: bool,
+    /// A previous saving run's output folder: the board boots with its `flash.bin` in the flash
+    /// region (a second power-on), the host replay loads its `host-map.fsmp`.
+    pub boot_from: Option<PathBuf>,
+    /// Localization only in the map booted from.
+    pub localize: bool,
+}
+
+/// The flash image a saving firmware replay writes into its output folder.
+pub const FLASH_IMAGE: &str = "flash.bin";
+/// The map file the host replay of a saving firmware replay writes.
+pub const HOST_MAP: &str = "host-map.fsmp";
 
 impl ReplayOptions {
     /// Parses `DATASET [--calibration FILE] [--max-frames N] [--frames A-B,...] [--out DIR]`;
@@ -76,6 +100,7 @@ impl ReplayOptions {
     pub fn parse(args: &[String], default_out: PathBuf) -> Result<Self> {
         let (mut dataset, mut calibration, mut frames) = (None, None, None);
         let (mut max_frames, mut out) = (DEFAULT_FRAMES, default_out);
+        let mut maps = BoardMaps::default();
         let mut it = args.iter();
         while let Some(a) = it.next() {
             match a.as_str() {
@@ -92,6 +117,12 @@ impl ReplayOptions {
                     let v = it.next().ok_or_else(|| anyhow!("--calibration needs a value"))?;
                     calibration = Some(PathBuf::from(v));
                 }
+                "--save-map" => maps.save = true,
+                "--localize" => maps.localize = true,
+                "--boot-from" => {
+                    let v = it.next().ok_or_else(|| anyhow!("--boot-from needs a folder"))?;
+                    maps.boot_from = Some(PathBuf::from(v));
+                }
                 flag if flag.starts_with("--") => bail!("unknown option {flag}"),
                 path if dataset.is_none() => dataset = Some(PathBuf::from(path)),
                 extra => bail!("unexpected argument {extra}"),
@@ -100,14 +131,17 @@ impl ReplayOptions {
         let dataset = dataset.ok_or_else(|| {
             anyhow!(
                 "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--frames \
-                 A-B,...] [--out DIR]"
+                 A-B,...] [--out DIR] [--save-map] [--boot-from DIR [--localize]]"
             )
         })?;
         let calibration = calibration.or_else(|| crate::paths::calibration_for(&dataset));
         if max_frames == 0 {
             bail!("--max-frames must be at least 1");
         }
-        Ok(Self { dataset, calibration, max_frames, frames, out, qemu_args: Vec::new() })
+        if maps.localize && maps.boot_from.is_none() {
+            bail!("--localize needs a map to localize in (--boot-from DIR)");
+        }
+        Ok(Self { dataset, calibration, max_frames, frames, out, qemu_args: Vec::new(), maps })
     }
 }
 
@@ -140,10 +174,31 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     let elf = firmware::build_firmware(root, "qemu-mps2")?;
     let _ = fs::remove_file(out.join("uart.bin"));
-    let append =
+    let mut append =
         format!("frames.fsrs {} {} {} {} {} {}", c.fx, c.fy, c.cx, c.cy, c.width, c.height);
+    let mut qemu_args = opts.qemu_args.clone();
+    let mut host_maps = run::MapFiles { localize: opts.maps.localize, ..Default::default() };
+    if let Some(from) = &opts.maps.boot_from {
+        let image = fs::canonicalize(from.join(FLASH_IMAGE)).with_context(|| {
+            format!("no flash image {} to boot from", from.join(FLASH_IMAGE).display())
+        })?;
+        let addr = place_store_address(&elf)?;
+        qemu_args.extend([
+            "-device".to_owned(),
+            format!("loader,file={},addr={addr:#x},force-raw=on", image.display()),
+        ]);
+        host_maps.load = Some(from.join(HOST_MAP));
+    }
+    if opts.maps.localize {
+        append += " localize";
+    }
+    if opts.maps.save {
+        let _ = fs::remove_file(out.join(FLASH_IMAGE));
+        append += &format!(" save={FLASH_IMAGE}");
+        host_maps.save = Some(out.join(HOST_MAP));
+    }
     let run =
-        firmware::run_qemu(&elf, &out, &append, "uart.bin", &opts.qemu_args, qemu_timeout(frames))?;
+        firmware::run_qemu(&elf, &out, &append, "uart.bin", &qemu_args, qemu_timeout(frames))?;
     let elf_bytes = fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
     let (log, log_error) = decode_defmt(&elf_bytes, &run.defmt);
     fs::write(out.join("firmware.log"), log.join("\n") + "\n")?;
@@ -170,7 +225,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
     // The firmware's settings: the board's map, quota and place memory (`TrackMode::SLAM`).
-    let options = RunOptions::new(QVGA, TrackMode::SLAM);
+    let options = RunOptions { maps: host_maps, ..RunOptions::new(QVGA, TrackMode::SLAM) };
     let host = run::track(&mut reader, frames, &cam, &options)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
@@ -186,6 +241,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
         .collect();
     let summary = write_cost_json(&out, &opts.dataset, &elf, &capture, &work)?;
 
+    let saved = if opts.maps.save { Some(compare_saved_maps(&out)?) } else { None };
     match first_difference(&fw_poses, &host) {
         None => {
             // ~0.9 MB a frame, and rewritten by every run: kept only when something differs.
@@ -196,6 +252,11 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
                  QEMU {:.1} s",
                 run.elapsed.as_secs_f64()
             );
+            match saved {
+                Some(Ok(line)) => println!("firmware-replay: {line}"),
+                Some(Err(e)) => return Err(e),
+                None => {}
+            }
             Ok(())
         }
         Some(diff) => {
@@ -203,6 +264,64 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
             bail!("the firmware's poses differ from the host's (first: {diff})")
         }
     }
+}
+
+/// The address of the firmware's flash region for the long-term store (`__place_store_start`
+/// of memory-qemu-mps2.x), where a flash image is loaded for a second boot.
+fn place_store_address(elf: &Path) -> Result<u64> {
+    let symbols = firmware::nm(elf, &[])?;
+    symbols
+        .lines()
+        .find(|l| l.ends_with(" __place_store_start"))
+        .and_then(|l| u64::from_str_radix(l.split_whitespace().next()?, 16).ok())
+        .ok_or_else(|| anyhow!("no __place_store_start symbol in {}", elf.display()))
+}
+
+/// The map in the firmware's flash image (`flash.bin`: what a boot on it finds, written as a map
+/// file) against the host's saved map (`host-map.fsmp`), byte for byte: `Ok(summary)` when
+/// equal, `Err` naming the first differing byte.
+fn compare_saved_maps(out: &Path) -> Result<Result<String>> {
+    let mut image = fs::read(out.join(FLASH_IMAGE))
+        .with_context(|| format!("the firmware wrote no {FLASH_IMAGE}"))?;
+    let board = map_in_flash_image(&mut image)?;
+    let host = fs::read(out.join(HOST_MAP)).with_context(|| format!("reading {HOST_MAP}"))?;
+    if board == host {
+        let records = board.len().saturating_sub(MAP_HEADER_BYTES) / PLACE_RECORD_BYTES;
+        return Ok(Ok(format!(
+            "the map in the board's flash image is the host's byte for byte ({records} keyframes, \
+             {} bytes as a map file)",
+            board.len()
+        )));
+    }
+    let at =
+        board.iter().zip(&host).position(|(a, b)| a != b).unwrap_or(board.len().min(host.len()));
+    fs::write(out.join("board-map.fsmp"), &board)?;
+    Ok(Err(anyhow!(
+        "the board's saved map differs from the host's: {} against {} bytes, first difference at \
+         byte {at} (board-map.fsmp and {HOST_MAP} in {})",
+        board.len(),
+        host.len(),
+        out.display()
+    )))
+}
+
+/// The map a boot on the flash image `image` finds, as a map file ([`ferroslam_core::persist`]).
+pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
+    let store = FlashStore::mount(SliceFlash::new(image))
+        .map_err(|e| anyhow!("mounting the flash image: {e:?}"))?;
+    let mut memory = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 0);
+    memory.attach(store);
+    if memory.stats().store_errors > 0 {
+        bail!("{} records in the flash image do not decode", memory.stats().store_errors);
+    }
+    let mut file = Vec::new();
+    memory
+        .save(|b: &[u8]| -> Result<(), std::convert::Infallible> {
+            file.extend_from_slice(b);
+            Ok(())
+        })
+        .map_err(|e| anyhow!("reading the flash image's map: {e:?}"))?;
+    Ok(file)
 }
 
 /// Writes the dataset's frames at sensor resolution as raw frame files back to back.

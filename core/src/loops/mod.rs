@@ -33,13 +33,13 @@ mod tests;
 
 use heapless::Vec;
 
-use crate::config::capacity::{PLACE_POINTS, PLACE_RECORD_BYTES};
+use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::Pose;
 use crate::map::{
     KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlaceKey, PlacePoint, PlaceRecord,
     RecordBytes,
 };
-use crate::persist::{MAP_HEADER_BYTES, MapFileError, MapHeader, RecordsChecksum};
+use crate::persist::{MapFileError, MapHeader, RecordsChecksum, check_map_file, map_records};
 use crate::pose::TrackingRng;
 use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
@@ -130,6 +130,8 @@ pub struct PlaceMemory<S> {
     buf: RecordBytes,
     /// Whether keyframes leaving the map are left unremembered ([`Self::freeze`]).
     frozen: bool,
+    /// The creation number after every record's ([`Places::first_free_seq`]).
+    next_seq: u32,
 }
 
 /// Why [`PlaceMemory::save`] stopped.
@@ -170,14 +172,43 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             index: [KeyBits([0; KEY_BITS_WORDS]); INDEXED_RECORDS],
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
             frozen: false,
+            next_seq: 0,
         }
     }
 
-    /// Attaches the memory to `store` in place of its own, forgetting what it held (for a memory
-    /// made `const` in a `static` before its store exists, as a board's flash region).
+    /// Attaches the memory to `store` in place of its own, forgetting what it held, and takes the
+    /// records `store` held when opened (a flash region's last committed map) into its index. For
+    /// a memory made `const` in a `static` before its store exists, and for a boot. Cost: each
+    /// held record read once; one that does not decode is counted in
+    /// [`PlaceStats::store_errors`] and kept in its slot, ranked last.
     pub fn attach(&mut self, store: S) {
         self.store = store;
-        self.len = 0;
+        self.len = self.store.held().min(self.store.capacity()).min(INDEXED_RECORDS);
+        self.next_seq = 0;
+        for slot in 0..self.len {
+            let record = self.read(slot);
+            if let Some(r) = &record {
+                self.next_seq = self.next_seq.max(r.seq.saturating_add(1));
+            }
+            let bits = record.map_or(KeyBits([u32::MAX; KEY_BITS_WORDS]), |r| r.key.bits());
+            if let Some(b) = self.index.get_mut(slot) {
+                *b = bits;
+            }
+        }
+    }
+
+    /// Makes the records held the store's map as one step: on a flash store, what a boot finds
+    /// after a power cut ([`KeyframeStore::commit`]). A save on a board is
+    /// `MapAccess::remember_all_in` then this.
+    ///
+    /// # Errors
+    /// The store's, counted in [`PlaceStats::store_errors`]; the last commit stands then.
+    pub fn commit(&mut self) -> Result<(), S::Error> {
+        let done = self.store.commit(self.len);
+        if done.is_err() {
+            self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+        }
+        done
     }
 
     /// Writes the held records as a map file ([`crate::persist`]) through `write`, called with
@@ -220,38 +251,13 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// What is wrong with the file ([`MapFileError`]); the memory is unchanged then. A store that
     /// fails a write is counted in [`PlaceStats::store_errors`] and keeps what was written.
     pub fn load(&mut self, file: &[u8]) -> Result<(), MapFileError> {
-        let header = MapHeader::decode(file)?;
-        let expected = header.file_bytes();
-        if file.len() < expected {
-            return Err(MapFileError::Truncated { expected, found: file.len() });
-        }
-        if file.len() > expected {
-            return Err(MapFileError::TrailingBytes { expected, found: file.len() });
-        }
-        let capacity = self.store.capacity().min(INDEXED_RECORDS);
-        if header.records as usize > capacity {
-            return Err(MapFileError::TooManyRecords { records: header.records, capacity });
-        }
-        let records =
-            || file.get(MAP_HEADER_BYTES..).unwrap_or(&[]).chunks_exact(PLACE_RECORD_BYTES);
-        let mut checksum = RecordsChecksum::default();
-        records().for_each(|r| checksum.add(r));
-        if checksum.value() != header.checksum {
-            return Err(MapFileError::Checksum {
-                stored: header.checksum,
-                computed: checksum.value(),
-            });
-        }
-        for (index, r) in records().enumerate() {
-            self.buf.copy_from_slice(r);
-            if PlaceRecord::decode(&self.buf).is_err() {
-                return Err(MapFileError::Record { index: index as u32 });
-            }
-        }
+        check_map_file(file, self.store.capacity().min(INDEXED_RECORDS))?;
         self.len = 0;
-        for r in records() {
+        self.next_seq = 0;
+        for r in map_records(file) {
             self.buf.copy_from_slice(r);
             let Ok(record) = PlaceRecord::decode(&self.buf) else { continue };
+            self.next_seq = self.next_seq.max(record.seq.saturating_add(1));
             if self.store.write(self.len, &self.buf).is_err() {
                 self.stats.store_errors = self.stats.store_errors.saturating_add(1);
                 break;
@@ -364,6 +370,10 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.len > 0
     }
 
+    fn first_free_seq(&self) -> u32 {
+        self.next_seq
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
         if self.frozen {
             return;
@@ -381,6 +391,7 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         if let Some(bits) = self.index.get_mut(slot) {
             *bits = record.key.bits();
         }
+        self.next_seq = self.next_seq.max(record.seq.saturating_add(1));
         if slot == self.len {
             self.len += 1;
         } else {

@@ -461,3 +461,25 @@ fn a_damaged_map_file_is_refused_whole_with_what_is_wrong() {
         assert_eq!(saved(&mut memory), before, "{wrong}: nothing half loaded");
     }
 }
+
+#[test]
+fn a_map_committed_to_flash_is_what_the_next_boot_holds() {
+    use crate::persist::{FlashStore, SliceFlash, flash_bytes_for};
+    let mut rng = TestRng::new(16);
+    let file = saved(&mut three_records::<8>(&mut rng));
+    let mut image = std::vec![0xFF; flash_bytes_for(8)];
+    let mut memory = PlaceMemory::new(FlashStore::mount(SliceFlash::new(&mut image)).unwrap(), 1);
+    memory.load(&file).unwrap();
+    // Loaded but not committed: a boot finds an empty store.
+    let mut copy = memory.store().flash().bytes().to_vec();
+    let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
+    assert!(booted.is_empty());
+    memory.commit().unwrap();
+    let mut copy = memory.store().flash().bytes().to_vec();
+    let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
+    assert!(booted.holds_places() && booted.len() == 3);
+    assert_eq!(saved(&mut booted), file, "the boot's map is the committed one, byte for byte");
+    assert_eq!(booted.stats().store_errors, 0);
+}

@@ -42,9 +42,8 @@ use nalgebra::Point3;
 pub use arena::{Arena, Handle};
 pub use observation::Observation;
 pub use place::{
-    FlashStore, FlashStoreError, Fnv1a, KEY_BITS_WORDS, KeyBits, KeyframeStore, NoStore,
-    PLACE_KEY_CELLS, PlaceKey, PlacePoint, PlaceRecord, RamStore, RecordBytes, RecordError,
-    SlotOutOfRange,
+    Fnv1a, KEY_BITS_WORDS, KeyBits, KeyframeStore, NoStore, PLACE_KEY_CELLS, PlaceKey, PlacePoint,
+    PlaceRecord, RamStore, RecordBytes, RecordError, SlotOutOfRange,
 };
 
 use crate::config::{BOARD_MAP, HOST_MAP, capacity};
@@ -184,6 +183,12 @@ impl<const K: usize, const L: usize> Map<K, L> {
     /// Whether the landmark arena is full.
     pub fn landmarks_full(&self) -> bool {
         self.landmarks.is_full()
+    }
+
+    /// Numbers the keyframes added from now on from `seq` at least (a run that extends a loaded
+    /// map continues its numbering).
+    pub fn number_from(&mut self, seq: u32) {
+        self.next_seq = self.next_seq.max(seq);
     }
 
     /// Adds a keyframe with no observations; its `seq` is the next creation number.

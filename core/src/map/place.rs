@@ -1,6 +1,7 @@
 //! The long-term tier of the map: what the robot remembers of a keyframe once it leaves the
 //! active map, a [`PlaceRecord`] of fixed size, kept behind a storage port ([`KeyframeStore`]):
-//! RAM on the host ([`RamStore`]), a NOR flash region on a board ([`FlashStore`]).
+//! RAM on the host ([`RamStore`]), a NOR flash region on a board (`persist::FlashStore`, a layer
+//! up).
 //!
 //! A record holds the keyframe's creation number, timestamp and pose `t_wc`, its [`PlaceKey`]
 //! (a thumbnail that ranks remembered places against a query) and up to
@@ -19,7 +20,6 @@
 
 use core::fmt;
 
-use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 use heapless::Vec;
 use nalgebra::{Point3, Quaternion, Translation3, UnitQuaternion};
 
@@ -341,6 +341,23 @@ pub trait KeyframeStore {
     /// # Errors
     /// The implementation's.
     fn write(&mut self, slot: usize, buf: &RecordBytes) -> Result<(), Self::Error>;
+
+    /// Records the store held when it was opened, in slots `0..held` (a store that keeps them
+    /// across power cycles, as `persist::FlashStore`); 0 for one that starts empty.
+    fn held(&self) -> usize {
+        0
+    }
+
+    /// Makes slots `0..records` the store's map as one step, durable where the store is (what a
+    /// boot finds after a power cut); the slots past `records` are dropped. Nothing to do for a
+    /// store that does not outlive its run.
+    ///
+    /// # Errors
+    /// The implementation's.
+    fn commit(&mut self, records: usize) -> Result<(), Self::Error> {
+        let _ = records;
+        Ok(())
+    }
 }
 
 /// A slot out of a store's range.
@@ -408,81 +425,5 @@ impl KeyframeStore for NoStore {
 
     fn write(&mut self, slot: usize, _: &RecordBytes) -> Result<(), Self::Error> {
         Err(SlotOutOfRange(slot))
-    }
-}
-
-/// A [`KeyframeStore`] on a NOR flash region (any `embedded-storage` [`NorFlash`]): slot `i` is
-/// the [`PLACE_RECORD_BYTES`] bytes at offset `i x PLACE_RECORD_BYTES`; a write erases its slot
-/// first. Its flash's erase and write sizes must divide a record (checked at compile time):
-/// flash with larger sectors takes the persistence layer's log instead (issue 48).
-#[derive(Debug)]
-pub struct FlashStore<F> {
-    flash: F,
-}
-
-impl<F: NorFlash> FlashStore<F> {
-    /// The store on `flash` (its whole capacity).
-    pub const fn new(flash: F) -> Self {
-        Self { flash }
-    }
-
-    /// The flash.
-    pub fn flash(&self) -> &F {
-        &self.flash
-    }
-
-    /// The byte range of slot `slot`, when the flash holds it.
-    fn range(&self, slot: usize) -> Option<(u32, u32)> {
-        let from = slot.checked_mul(PLACE_RECORD_BYTES)?;
-        let to = from.checked_add(PLACE_RECORD_BYTES)?;
-        (to <= self.flash.capacity())
-            .then_some((u32::try_from(from).ok()?, u32::try_from(to).ok()?))
-    }
-}
-
-/// Why a [`FlashStore`] read or write failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum FlashStoreError {
-    /// The slot lies beyond the flash region.
-    SlotOutOfRange(usize),
-    /// The flash refused an unaligned erase or write.
-    NotAligned,
-    /// The flash refused an access beyond its end.
-    OutOfBounds,
-    /// The flash failed otherwise (its driver's error).
-    Flash,
-}
-
-impl FlashStoreError {
-    fn of(e: &impl NorFlashError) -> Self {
-        match e.kind() {
-            NorFlashErrorKind::NotAligned => Self::NotAligned,
-            NorFlashErrorKind::OutOfBounds => Self::OutOfBounds,
-            _ => Self::Flash,
-        }
-    }
-}
-
-impl<F: NorFlash> KeyframeStore for FlashStore<F> {
-    type Error = FlashStoreError;
-
-    fn capacity(&self) -> usize {
-        self.flash.capacity() / PLACE_RECORD_BYTES
-    }
-
-    fn read(&mut self, slot: usize, buf: &mut RecordBytes) -> Result<(), Self::Error> {
-        let (from, _) = self.range(slot).ok_or(FlashStoreError::SlotOutOfRange(slot))?;
-        self.flash.read(from, buf).map_err(|e| FlashStoreError::of(&e))
-    }
-
-    fn write(&mut self, slot: usize, buf: &RecordBytes) -> Result<(), Self::Error> {
-        const {
-            assert!(PLACE_RECORD_BYTES.is_multiple_of(F::ERASE_SIZE));
-            assert!(PLACE_RECORD_BYTES.is_multiple_of(F::WRITE_SIZE));
-        }
-        let (from, to) = self.range(slot).ok_or(FlashStoreError::SlotOutOfRange(slot))?;
-        self.flash.erase(from, to).map_err(|e| FlashStoreError::of(&e))?;
-        self.flash.write(from, buf).map_err(|e| FlashStoreError::of(&e))
     }
 }

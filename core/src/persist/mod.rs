@@ -7,13 +7,25 @@
 //! every record before the map is used, so a file from another format, truncated or with one bit
 //! flipped is refused whole, with an error that names what is wrong ([`MapFileError`]).
 //!
-//! Not yet here (issue 48): the power-cut-safe log on the board's NOR flash and wear levelling;
-//! this format is what such a log would hold.
+//! On a board the same records live in a NOR flash region ([`FlashStore`]): written as the map
+//! grows, made the map a boot finds by a commit, safe against a power cut at any write.
 
 use core::fmt;
 
+mod cut_flash;
+mod flash;
+mod slice_flash;
+
+pub use cut_flash::{COUNTED_UNITS, CutError, CutFlash};
+
+pub use flash::{
+    FlashStore, FlashStoreError, MAX_RECORD_UNITS, RELOCATE_EVERY, SPARE_UNITS, TABLE_SLOTS,
+    TABLE_UNITS, flash_bytes_for,
+};
+pub use slice_flash::{SECTOR_BYTES, SliceFlash, SliceFlashError};
+
 use crate::config::capacity::PLACE_RECORD_BYTES;
-use crate::map::Fnv1a;
+use crate::map::{Fnv1a, PlaceRecord};
 
 /// The file's first bytes.
 pub const MAP_MAGIC: [u8; 4] = *b"FSMP";
@@ -96,6 +108,44 @@ impl MapHeader {
 /// FNV-1a over the records' bytes as they are written or read, one record at a time (the
 /// record checksum's hash).
 pub type RecordsChecksum = Fnv1a;
+
+/// Checks the map file `file` whole, for a store of `capacity` records: the header, the length,
+/// the record count, the checksum over the records, then every record. Cost: every record
+/// hashed once and decoded once.
+///
+/// # Errors
+/// The first check that fails.
+pub fn check_map_file(file: &[u8], capacity: usize) -> Result<MapHeader, MapFileError> {
+    let header = MapHeader::decode(file)?;
+    let expected = header.file_bytes();
+    if file.len() < expected {
+        return Err(MapFileError::Truncated { expected, found: file.len() });
+    }
+    if file.len() > expected {
+        return Err(MapFileError::TrailingBytes { expected, found: file.len() });
+    }
+    if header.records as usize > capacity {
+        return Err(MapFileError::TooManyRecords { records: header.records, capacity });
+    }
+    let mut checksum = RecordsChecksum::default();
+    map_records(file).for_each(|r| checksum.add(r));
+    if checksum.value() != header.checksum {
+        return Err(MapFileError::Checksum { stored: header.checksum, computed: checksum.value() });
+    }
+    let mut buf = [0u8; PLACE_RECORD_BYTES];
+    for (index, r) in (0u32..).zip(map_records(file)) {
+        buf.copy_from_slice(r);
+        if PlaceRecord::decode(&buf).is_err() {
+            return Err(MapFileError::Record { index });
+        }
+    }
+    Ok(header)
+}
+
+/// The records' bytes of a map file, in order (after [`check_map_file`]: every one decodes).
+pub fn map_records(file: &[u8]) -> core::slice::ChunksExact<'_, u8> {
+    file.get(MAP_HEADER_BYTES..).unwrap_or(&[]).chunks_exact(PLACE_RECORD_BYTES)
+}
 
 /// Why a map file cannot be loaded; nothing of it is loaded then.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

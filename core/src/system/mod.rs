@@ -120,6 +120,9 @@ impl<P: ProfileTypes> Slam<P> {
     ///
     /// # Errors
     /// As `Backend::step`.
+    // Not inlined: the frame's step and the drain share one copy of the back end's code (two
+    // were 20 KB more flash on the board).
+    #[inline(never)]
     pub fn step_backend(
         &mut self,
         cam: &PinholeCamera,
@@ -128,6 +131,29 @@ impl<P: ProfileTypes> Slam<P> {
         self.tell_backend();
         let cam = self.frontend.tracking_camera(cam);
         self.backend.step(&mut self.map, &cam, work_quota)
+    }
+
+    /// Runs the back end in steps of `work_quota` units until it has nothing under way, at most
+    /// `max_steps` steps: what ends a run before its map is read or saved (the last solve's
+    /// adjustment applied). Returns the steps run.
+    ///
+    /// # Errors
+    /// As `Backend::step`; the steps stop at the first.
+    pub fn drain_backend(
+        &mut self,
+        cam: &PinholeCamera,
+        work_quota: u32,
+        max_steps: u32,
+    ) -> Result<u32, BackendError> {
+        for step in 0..max_steps {
+            if !self.backend.is_busy() {
+                return Ok(step);
+            }
+            if let BackendStatus::Idle = self.step_backend(cam, work_quota)? {
+                return Ok(step + 1);
+            }
+        }
+        Ok(max_steps)
     }
 
     /// The front end with the map, and the back end's solve, borrowed apart for one frame: `Some`

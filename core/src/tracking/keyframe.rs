@@ -109,7 +109,9 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         if !self.detection.detect(frame, &self.params.hessian) {
             return None;
         }
-        let points = self.query_points(frame, cam);
+        // Filled in place: a returned vector was copied, 8 KiB more stack.
+        let mut points: Vec<QueryPoint, QUERY_POINTS> = Vec::new();
+        self.query_points(frame, cam, &mut points);
         let query = PlaceQuery { key: self.place_key(), points: &points, size: frame.gray.size() };
         places.relocalize(&query, map).map(|t_wc| t_wc.inverse())
     }
@@ -151,14 +153,14 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         Some(closure)
     }
 
-    /// The detected features of `frame` with valid depth, as query points with descriptors (at
-    /// most [`QUERY_POINTS`]).
+    /// Puts the detected features of `frame` with valid depth into `points`, as query points
+    /// with descriptors (until it is full).
     fn query_points(
         &self,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
-    ) -> Vec<QueryPoint, QUERY_POINTS> {
-        let mut points: Vec<QueryPoint, QUERY_POINTS> = Vec::new();
+        points: &mut Vec<QueryPoint, QUERY_POINTS>,
+    ) {
         for f in &self.detection.features {
             let Some(z) = landmark_depth(frame, cam, f, &self.params) else { continue };
             let Some(descriptor) = Descriptor::of(&frame.gray, f.x, f.y) else { continue };
@@ -167,7 +169,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
                 break;
             }
         }
-        points
     }
 
     /// Records the inliers as observations of keyframe `kf` and re-anchors the tracked landmarks

@@ -61,6 +61,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         places: &mut impl Places,
     ) -> FrameResult {
         if let Some(t_cw) = self.query_places(frame, cam, map, places) {
+            // The run's keyframes follow the loaded map's in creation order. `track_start`
+            // stays 0: the run continues the loaded map as if tracked through, so a loop to one
+            // of its places is held, not applied (docs/decisions.md, "Loops across runs").
+            map.number_from(places.first_free_seq());
             let r = self.initialize(frame, cam, map, places, &t_cw);
             if r.keyframe.is_some() {
                 return FrameResult { tracked: false, relocalized: true, ..r };

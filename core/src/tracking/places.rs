@@ -56,6 +56,11 @@ pub trait Places {
     /// by relocalizing in them, not by making a new world frame.
     fn holds_places(&self) -> bool;
 
+    /// The creation number after every held place's (0 when none): a run that starts in a
+    /// loaded map numbers its keyframes from here, so that its keyframes and the loaded map's
+    /// never share one.
+    fn first_free_seq(&self) -> u32;
+
     /// Keyframe `kf` of `map` is about to leave the map: remember it.
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId);
 
@@ -91,6 +96,10 @@ impl Places for NoPlaces {
 
     fn holds_places(&self) -> bool {
         false
+    }
+
+    fn first_free_seq(&self) -> u32 {
+        0
     }
 
     fn remember<const K: usize, const L: usize>(&mut self, _: &Map<K, L>, _: KeyFrameId) {}

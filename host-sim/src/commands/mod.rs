@@ -9,6 +9,8 @@
 //! ferroslam-sim decode-serial FILE [--tum]             the firmware's UART capture: poses, losses
 //! ferroslam-sim calibrate-depth DATASET --out FILE [--check FILE] [--start N] [--step N]
 //!                                                       depth-to-colour registration, from the images
+//! ferroslam-sim map info FILE                          a saved map file: keyframes, points, checksum
+//! ferroslam-sim map export FILE --ply OUT              a saved map file as a PLY point cloud
 //! ```
 //! Every error is printed with its causes (file and line where there is one) and the process exits
 //! with status 1; usage errors exit with status 2.
@@ -17,6 +19,7 @@ pub mod args;
 pub mod calibrate_depth;
 pub mod decode_serial;
 pub mod demo;
+pub mod map;
 pub mod replay;
 
 use std::path::PathBuf;
@@ -50,6 +53,9 @@ enum Command {
     /// colour (the colour intrinsics and the depth camera's offset), from the images; write it as
     /// a calibration file, or check one.
     CalibrateDepth(calibrate_depth::CalibrateDepthArgs),
+    /// Inspect a saved map file (`replay --save-map`): what it holds (`info`), or its points as a
+    /// PLY point cloud (`export --ply`).
+    Map(map::MapArgs),
 }
 
 /// Arguments of `eval`.
@@ -93,6 +99,7 @@ pub fn main() -> ExitCode {
         Command::Eval(args) => run_eval(args),
         Command::DecodeSerial(args) => decode_serial::run(args),
         Command::CalibrateDepth(args) => calibrate_depth::run(args),
+        Command::Map(args) => map::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

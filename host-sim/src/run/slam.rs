@@ -28,7 +28,7 @@ use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, fram
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// Back-end steps allowed after the last frame to finish the solve under way.
-const DRAIN_STEPS: usize = 10_000;
+const DRAIN_STEPS: u32 = 10_000;
 
 /// A map of more than this many keyframes is a large one, where issue 4 (after the paper) wants
 /// the local window to average 50-65 keyframes.
@@ -304,6 +304,13 @@ impl Places for RunPlaces {
         }
     }
 
+    fn first_free_seq(&self) -> u32 {
+        match self {
+            Self::On(m) => m.first_free_seq(),
+            Self::Off(n) => n.first_free_seq(),
+        }
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
         match self {
             Self::On(m) => m.remember(map, kf),
@@ -397,14 +404,7 @@ where
     if stepper.owed {
         stepper.step()?;
     }
-    for _ in 0..DRAIN_STEPS {
-        if !slam.backend().is_busy() {
-            break;
-        }
-        if let BackendStatus::Idle = slam.step_backend(cam, quota).map_err(backend_error)? {
-            break;
-        }
-    }
+    slam.drain_backend(cam, quota, DRAIN_STEPS).map_err(backend_error)?;
     record.update(&slam);
     let keyframe_pose = &record.keyframe_pose;
     let camera = relative

@@ -6,33 +6,33 @@ use cortex_m as _;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use defmt_semihosting as _;
-use ferroslam_core::config::capacity::{BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES};
+use ferroslam_core::config::capacity::BOARD_STORE_FLASH_BYTES;
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::loops::PlaceMemory;
-use ferroslam_core::map::FlashStore;
+use ferroslam_core::persist::{FlashStore, FlashStoreError, SliceFlash};
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message, PoseFlags};
 use ferroslam_firmware::cmsdk_uart::CmsdkUart;
-use ferroslam_firmware::flash_region::RegionFlash;
-use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
+use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, TickClock, run_frame};
 use ferroslam_firmware::semihost_source::{SemihostFrames, SourceError};
-use ferroslam_firmware::semihosting::{SemihostingError, command_line};
+use ferroslam_firmware::semihosting::{HostFile, Mode, SemihostingError, command_line};
 use ferroslam_firmware::serial::{SerialError, SerialLink};
 use ferroslam_firmware::stack;
 use ferroslam_firmware::stream::HalfFrame;
 use ferroslam_firmware::systick::{SysTickClock, on_systick_wrap};
 
-/// Bytes of the long-term store: the board's record count of 1 KiB records (512 KiB).
-const STORE_BYTES: usize = BOARD_STORE_KEYFRAMES * PLACE_RECORD_BYTES;
-
-/// The long-term store's bytes, in the region standing for the board's flash
-/// (memory-qemu-mps2.x): neither RAM nor the load image. Taken once by `main`.
-#[unsafe(link_section = ".place_store")]
-static mut PLACE_STORE: [u8; STORE_BYTES] = [0xFF; STORE_BYTES];
+unsafe extern "C" {
+    /// The first byte of the region standing for the board's flash (memory-qemu-mps2.x): neither
+    /// RAM nor the load image, so a boot finds what QEMU put there (a flash image given with
+    /// `-device loader`, or zeros: a blank store).
+    static mut __place_store_start: u8;
+    /// The byte after the region.
+    static mut __place_store_end: u8;
+}
 
 /// The place memory over the flash region's store.
-type BoardPlaces = PlaceMemory<FlashStore<RegionFlash<'static>>>;
+type BoardPlaces = PlaceMemory<FlashStore<SliceFlash<'static>>>;
 
 /// Instructions per SysTick tick under QEMU `-icount shift=0` (1 GHz virtual instruction clock,
 /// 25 MHz SysTick).
@@ -47,13 +47,21 @@ enum Failure {
     Source(SourceError),
     Link(SerialError<core::convert::Infallible>),
     StackOverflow,
+    Store(FlashStoreError),
+    SaveFile(SemihostingError),
 }
 
 /// Camera and input file from the semihosting command line:
-/// `FRAMES fx fy cx cy width height` (intrinsics at the processing resolution, in pixels).
+/// `FRAMES fx fy cx cy width height [localize] [save=FILE]` (intrinsics at the processing
+/// resolution, in pixels). `localize`: the map in the flash store is only localized in (nothing
+/// is added to it). `save=FILE`: at the end the active map's keyframes are remembered and the
+/// store committed (a save), then the flash region's bytes are written to the host file FILE (a
+/// flash image a later boot is given).
 struct Args<'a> {
     frames: &'a str,
     cam: PinholeCamera,
+    localize: bool,
+    save: Option<&'a str>,
 }
 
 fn parse_args(text: &str) -> Result<Args<'_>, Failure> {
@@ -70,7 +78,14 @@ fn parse_args(text: &str) -> Result<Args<'_>, Failure> {
         (next(&mut words)?, next(&mut words)?, next(&mut words)?, next(&mut words)?);
     let (w, h) = (next(&mut words)?, next(&mut words)?);
     let cam = PinholeCamera::new(fx, fy, cx, cy, w, h).map_err(|_| Failure::Camera)?;
-    Ok(Args { frames, cam })
+    let (mut localize, mut save) = (false, None);
+    for word in words {
+        match word {
+            "localize" => localize = true,
+            _ => save = Some(word.strip_prefix("save=").ok_or(Failure::Usage)?),
+        }
+    }
+    Ok(Args { frames, cam, localize, save })
 }
 
 #[entry]
@@ -84,20 +99,46 @@ fn main() -> ! {
     // The place memory (its RAM index is 12 KiB): a static too, attached to the flash region
     // below.
     static mut PLACES: BoardPlaces =
-        PlaceMemory::new(FlashStore::new(RegionFlash::empty()), SLAM_FRONTEND.rng_seed);
+        PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), SLAM_FRONTEND.rng_seed);
     stack::paint();
     let (store, pipeline) = (STORE, PIPELINE);
-    // SAFETY: `main` runs once and is the only code that names PLACE_STORE, so this is the one
-    // reference to it, for the rest of the program.
-    let place_store: &'static mut [u8] = unsafe { &mut *core::ptr::addr_of_mut!(PLACE_STORE) };
+    let start = core::ptr::addr_of_mut!(__place_store_start);
+    let region =
+        (core::ptr::addr_of_mut!(__place_store_end) as usize).saturating_sub(start as usize);
+    // SAFETY: the linker script reserves the region for the store alone (nothing is linked
+    // there) and it is at least BOARD_STORE_FLASH_BYTES long (checked); `main` runs once and is
+    // the only code that names it, so this is the one reference to it.
+    let place_store: &'static mut [u8] = if region >= BOARD_STORE_FLASH_BYTES {
+        unsafe { core::slice::from_raw_parts_mut(start, BOARD_STORE_FLASH_BYTES) }
+    } else {
+        &mut []
+    };
     defmt::info!(
         "ferroslam qemu-mps2: statics {} B frame store + {} B pipeline",
         core::mem::size_of::<HalfFrame>(),
         core::mem::size_of::<Pipeline>()
     );
     let places = PLACES;
-    places.attach(FlashStore::new(RegionFlash::new(place_store)));
-    let status = match run(store, pipeline, places) {
+    let Some(peripherals) = cortex_m::Peripherals::take() else { exit(EXIT_FAILURE) };
+    let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
+    let before = clock.now();
+    let status = match FlashStore::mount(SliceFlash::new(place_store)) {
+        Ok(flash) => {
+            // The last committed map, if the region holds one: the run starts in it.
+            places.attach(flash);
+            let ticks = clock.now().wrapping_sub(before);
+            defmt::info!(
+                "place store: {} keyframes held (table generation {}), mounted and indexed in {} \
+                 instructions",
+                places.len(),
+                places.store().generation(),
+                u64::from(ticks) * u64::from(INSTRUCTIONS_PER_TICK)
+            );
+            run(store, pipeline, places, &mut clock)
+        }
+        Err(e) => Err(Failure::Store(e)),
+    };
+    let status = match status {
         Ok(()) => EXIT_SUCCESS,
         Err(e) => {
             defmt::error!("replay failed: {}", e);
@@ -112,6 +153,7 @@ fn run(
     store: &'static mut HalfFrame,
     pipeline: &'static mut Pipeline,
     places: &mut BoardPlaces,
+    clock: &mut SysTickClock<INSTRUCTIONS_PER_TICK>,
 ) -> Result<(), Failure> {
     let mut line = [0u8; 512];
     let args = parse_args(command_line(&mut line).map_err(Failure::CommandLine)?)?;
@@ -127,10 +169,7 @@ fn run(
             return Err(Failure::Source(e));
         }
     };
-    let Some(peripherals) = cortex_m::Peripherals::take() else {
-        return Err(Failure::Usage);
-    };
-    let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
+    places.freeze(args.localize);
     loop {
         let outcome = run_frame(
             &mut source,
@@ -138,7 +177,7 @@ fn run(
             places,
             &args.cam,
             &mut link,
-            &mut clock,
+            clock,
             SourceError::code,
         )
         .map_err(Failure::Link)?;
@@ -172,7 +211,32 @@ fn run(
     let mut status = pipeline.status();
     status.stack_peak_bytes = stack::peak_bytes();
     defmt::info!("status: {}", status);
-    link.send(&Message::Status(status)).map_err(Failure::Link)
+    link.send(&Message::Status(status)).map_err(Failure::Link)?;
+    if let Some(path) = args.save {
+        save(pipeline, places, &args.cam, path)?;
+    }
+    Ok(())
+}
+
+/// Saves the map: the back end's work finished, the active map's keyframes remembered (unless
+/// localizing), the store committed, then the flash region's bytes written to the host file
+/// `path`.
+fn save(
+    pipeline: &mut Pipeline,
+    places: &mut BoardPlaces,
+    cam: &PinholeCamera,
+    path: &str,
+) -> Result<(), Failure> {
+    pipeline.remember_map_in(cam, places);
+    places.commit().map_err(Failure::Store)?;
+    defmt::info!(
+        "map saved: {} keyframes, table generation {}; flash image to {=str}",
+        places.len(),
+        places.store().generation(),
+        path
+    );
+    let mut file = HostFile::open(path, Mode::WriteTruncate).map_err(Failure::SaveFile)?;
+    file.write_all(places.store().flash().bytes()).map_err(Failure::SaveFile)
 }
 
 /// Ends the QEMU session with `status`; on a debugger that resumes the core, it waits forever.

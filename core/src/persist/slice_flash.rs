@@ -1,7 +1,6 @@
-//! A memory region that behaves as NOR flash ([`RegionFlash`]): the QEMU board's stand-in for the
-//! reference board's flash, where the long-term store of remembered keyframes lives
-//! (`ferroslam_core::map::FlashStore`). Its region is linked apart from RAM (section
-//! `.place_store`), so the RAM budget does not pay for memory of the past.
+//! A slice of memory that behaves as NOR flash ([`SliceFlash`]): the QEMU board's stand-in for
+//! the reference board's flash, where the long-term store lives ([`super::FlashStore`]), and the
+//! host's view of a flash image read back from a board.
 //!
 //! NOR semantics, faithfully: erasing sets a sector's bytes to `0xFF`; programming can only clear
 //! bits (a byte becomes `old & new`), so a write over an unerased slot corrupts it as real flash
@@ -12,15 +11,15 @@ use embedded_storage::nor_flash::{
 };
 
 /// Sector size, bytes: one long-term store record.
-pub const SECTOR_BYTES: usize = 1024;
+pub const SECTOR_BYTES: usize = crate::config::capacity::PLACE_RECORD_BYTES;
 
 /// A region of bytes standing for NOR flash (see the module documentation).
 #[derive(Debug)]
-pub struct RegionFlash<'a> {
+pub struct SliceFlash<'a> {
     bytes: &'a mut [u8],
 }
 
-impl<'a> RegionFlash<'a> {
+impl<'a> SliceFlash<'a> {
     /// The flash over `bytes` (its length a multiple of [`SECTOR_BYTES`]; a remainder is not
     /// used). Its content is taken as is: the store erases a slot before writing it.
     pub fn new(bytes: &'a mut [u8]) -> Self {
@@ -31,8 +30,8 @@ impl<'a> RegionFlash<'a> {
 
     /// A region of no bytes (`const`, for a place memory in a `static` that is attached to its
     /// region at run time).
-    pub const fn empty() -> RegionFlash<'static> {
-        RegionFlash { bytes: &mut [] }
+    pub const fn empty() -> SliceFlash<'static> {
+        SliceFlash { bytes: &mut [] }
     }
 
     /// The region's bytes, as written (the host reads them back to compare).
@@ -41,23 +40,23 @@ impl<'a> RegionFlash<'a> {
     }
 
     /// The bytes `offset..offset + len`, when the region holds them.
-    fn span(&mut self, offset: u32, len: usize) -> Result<&mut [u8], RegionError> {
-        let from = usize::try_from(offset).map_err(|_| RegionError::OutOfBounds)?;
-        let to = from.checked_add(len).ok_or(RegionError::OutOfBounds)?;
-        self.bytes.get_mut(from..to).ok_or(RegionError::OutOfBounds)
+    fn span(&mut self, offset: u32, len: usize) -> Result<&mut [u8], SliceFlashError> {
+        let from = usize::try_from(offset).map_err(|_| SliceFlashError::OutOfBounds)?;
+        let to = from.checked_add(len).ok_or(SliceFlashError::OutOfBounds)?;
+        self.bytes.get_mut(from..to).ok_or(SliceFlashError::OutOfBounds)
     }
 }
 
-/// Why a [`RegionFlash`] operation failed.
+/// Why a [`SliceFlash`] operation failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RegionError {
+pub enum SliceFlashError {
     /// Outside the region.
     OutOfBounds,
     /// An erase not on sector boundaries, or a write not on word boundaries.
     NotAligned,
 }
 
-impl NorFlashError for RegionError {
+impl NorFlashError for SliceFlashError {
     fn kind(&self) -> NorFlashErrorKind {
         match self {
             Self::OutOfBounds => NorFlashErrorKind::OutOfBounds,
@@ -66,11 +65,11 @@ impl NorFlashError for RegionError {
     }
 }
 
-impl ErrorType for RegionFlash<'_> {
-    type Error = RegionError;
+impl ErrorType for SliceFlash<'_> {
+    type Error = SliceFlashError;
 }
 
-impl ReadNorFlash for RegionFlash<'_> {
+impl ReadNorFlash for SliceFlash<'_> {
     const READ_SIZE: usize = 1;
 
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
@@ -83,14 +82,14 @@ impl ReadNorFlash for RegionFlash<'_> {
     }
 }
 
-impl NorFlash for RegionFlash<'_> {
+impl NorFlash for SliceFlash<'_> {
     const WRITE_SIZE: usize = 4;
     const ERASE_SIZE: usize = SECTOR_BYTES;
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
         let aligned = |x: u32| (x as usize).is_multiple_of(SECTOR_BYTES);
         if !aligned(from) || !aligned(to) || to < from {
-            return Err(RegionError::NotAligned);
+            return Err(SliceFlashError::NotAligned);
         }
         self.span(from, (to - from) as usize)?.fill(0xFF);
         Ok(())
@@ -100,7 +99,7 @@ impl NorFlash for RegionFlash<'_> {
         if !(offset as usize).is_multiple_of(Self::WRITE_SIZE)
             || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
         {
-            return Err(RegionError::NotAligned);
+            return Err(SliceFlashError::NotAligned);
         }
         for (cell, &b) in self.span(offset, bytes.len())?.iter_mut().zip(bytes) {
             *cell &= b;
@@ -116,7 +115,7 @@ mod tests {
     #[test]
     fn behaves_as_nor_flash() {
         let mut backing = [0u8; 2 * SECTOR_BYTES + 5];
-        let mut f = RegionFlash::new(&mut backing);
+        let mut f = SliceFlash::new(&mut backing);
         assert_eq!(f.capacity(), 2 * SECTOR_BYTES);
         f.erase(0, SECTOR_BYTES as u32).unwrap();
         f.write(0, &[0xF0, 0x0F, 0xAA, 0x55]).unwrap();
@@ -124,8 +123,8 @@ mod tests {
         let mut out = [0; 4];
         f.read(0, &mut out).unwrap();
         assert_eq!(out, [0xC0, 0x0C, 0x88, 0x44], "programming only clears bits");
-        assert_eq!(f.erase(1, 1024), Err(RegionError::NotAligned));
-        assert_eq!(f.write(2, &[0; 4]), Err(RegionError::NotAligned));
-        assert_eq!(f.read(2 * SECTOR_BYTES as u32, &mut out), Err(RegionError::OutOfBounds));
+        assert_eq!(f.erase(1, 1024), Err(SliceFlashError::NotAligned));
+        assert_eq!(f.write(2, &[0; 4]), Err(SliceFlashError::NotAligned));
+        assert_eq!(f.read(2 * SECTOR_BYTES as u32, &mut out), Err(SliceFlashError::OutOfBounds));
     }
 }
