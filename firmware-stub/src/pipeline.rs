@@ -55,7 +55,7 @@ impl Pipeline {
         places: &mut impl Places,
     ) -> Result<PoseMessage, FrontendError> {
         let pose = self.track(frame, cam, places)?;
-        self.step_backend(cam);
+        self.step_backend(cam, places);
         Ok(pose)
     }
 
@@ -74,11 +74,13 @@ impl Pipeline {
         Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result))
     }
 
-    /// The second half of [`Pipeline::process`]: the back end for [`BACKEND_QUOTA`] units.
-    fn step_backend(&mut self, cam: &PinholeCamera) {
+    /// The second half of [`Pipeline::process`]: the back end for [`BACKEND_QUOTA`] units, then
+    /// the place memory's pending store write ([`Places::flush`]).
+    fn step_backend(&mut self, cam: &PinholeCamera, places: &mut impl Places) {
         if self.slam.step_backend(cam, BACKEND_QUOTA).is_err() {
             self.note_fault();
         }
+        places.flush();
     }
 
     /// Finishes the back end's work under way ([`DRAIN_STEPS`] steps of [`BACKEND_QUOTA`] at
@@ -146,7 +148,8 @@ pub trait TickClock {
 /// the frame; the caller may go on with the next frame either way).
 ///
 /// The cost message times four stages with `clock`: acquiring the frame, the front end, the
-/// back-end step after it, and sending the pose (its own cost message is not counted).
+/// back-end step after it (with the place memory's store write), and sending the pose (its own
+/// cost message is not counted).
 ///
 /// # Errors
 /// The sink's error (the link itself failed).
@@ -173,7 +176,7 @@ where
             match pipeline.track(&frame, cam, places) {
                 Ok(pose) => {
                     let t2 = clock.now();
-                    pipeline.step_backend(cam);
+                    pipeline.step_backend(cam, places);
                     let t3 = clock.now();
                     sink.send(&Message::Pose(pose))?;
                     let t4 = clock.now();

@@ -130,7 +130,7 @@ fn track(
         ),
         sensor.depth_noise_coeff_per_m
     );
-    let written = write_odometry(out, &run, Some(gt), profile.name, 0, note)?;
+    let written = write_odometry(out, &run, Some(gt), profile.name, &[], note)?;
     Ok(RunOutputs { report: written.report, evaluation: written.evaluation, wall_s })
 }
 
@@ -165,7 +165,7 @@ fn data_path(
          {ODOM_NOISE_DEG} deg; baseline_trajectory.txt), not an estimate from the images",
         run.frames, options.synth.width, options.synth.height, profile.name, run.width, run.height
     );
-    let report = Report::data_path(&run, profile.name, 0, note);
+    let report = Report::data_path(&run, profile.name, &[], note);
     report.write(out)?;
     std::fs::write(out.join("baseline_eval.json"), serde_json::to_string_pretty(&evaluation)?)?;
     Ok(RunOutputs { report, evaluation: Some(evaluation), wall_s })

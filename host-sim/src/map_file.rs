@@ -11,8 +11,8 @@ use ferroslam_core::config::capacity::{BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES
 use ferroslam_core::loops::INDEXED_RECORDS;
 use ferroslam_core::map::{PlaceRecord, RecordBytes, RecordError};
 use ferroslam_core::persist::{
-    MAP_HEADER_BYTES, MAP_VERSION, MapFileError, MapHeader, RecordsChecksum, check_map_file,
-    map_records,
+    MAP_HEADER_BYTES, MAP_LAYOUT, MAP_VERSION, MapFileError, MapHeader, RecordLayout,
+    RecordsChecksum, check_map_file, map_records,
 };
 
 /// Records a map file may hold: what the host's place memory (a store of
@@ -147,7 +147,7 @@ impl MapFile {
         MapSummary {
             version: MAP_VERSION,
             file_bytes: self.file_bytes,
-            record_bytes: PLACE_RECORD_BYTES,
+            layout: MAP_LAYOUT,
             keyframes: self.records.len(),
             checksum: self.header.checksum,
             points,
@@ -316,8 +316,8 @@ pub struct MapSummary {
     pub version: u8,
     /// Bytes of the file.
     pub file_bytes: usize,
-    /// Bytes of one record.
-    pub record_bytes: usize,
+    /// The record layout (bytes, points and key size per record).
+    pub layout: RecordLayout,
     /// Records: remembered keyframes.
     pub keyframes: usize,
     /// The header's FNV-1a checksum of the records (the records were checked against it).
@@ -334,8 +334,8 @@ impl fmt::Display for MapSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "format: version {}, {MAP_HEADER_BYTES}-byte header, records of {} bytes",
-            self.version, self.record_bytes
+            "format: version {}, {MAP_HEADER_BYTES}-byte header, {}",
+            self.version, self.layout
         )?;
         writeln!(f, "file: {} bytes", self.file_bytes)?;
         writeln!(f, "checksum: {:#010x} (FNV-1a of the records: matches)", self.checksum)?;

@@ -10,12 +10,12 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use ferroslam_core::config::SensorModel;
 use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::Point3;
 
-use crate::dataset::{Dataset, DatasetOptions};
+use crate::dataset::{Dataset, DatasetOptions, SkipReason, Stream};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
 use crate::run::{self, MapFiles, Progress, RunOptions, TrackMode};
@@ -23,6 +23,10 @@ use crate::trajectory::Trajectory;
 
 /// Frames the dataset reader decodes ahead of the core.
 const READ_AHEAD_FRAMES: usize = 8;
+
+/// Skipped frames named one by one on the console or in the `--strict` error; report.json lists
+/// every one.
+pub const SKIPPED_FRAMES_SHOWN: usize = 5;
 
 /// How a replay runs, apart from its folder and output folder.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,6 +44,11 @@ pub struct ReplayOptions {
     pub progress_bar: bool,
     /// Map files the SLAM run starts from and saves to.
     pub maps: MapFiles,
+    /// Refuse to run when a frame listed in `rgb.txt` would be skipped (its colour image
+    /// missing, or no depth image within the association limit): [`Replay::open`] fails saying
+    /// which (`replay --strict`). Depth images without a frame do not count. Default `false`:
+    /// skipped frames are left out, said by [`skipped_frames_text`] and counted in the report.
+    pub strict: bool,
 }
 
 impl ReplayOptions {
@@ -52,6 +61,7 @@ impl ReplayOptions {
             seed: None,
             progress_bar: true,
             maps: MapFiles::default(),
+            strict: false,
         }
     }
 }
@@ -76,9 +86,18 @@ impl Replay {
     /// Opens the TUM-layout folder `dir` as `options.dataset` says.
     ///
     /// # Errors
-    /// Any dataset error ([`crate::dataset::DatasetError`]: it names the file and line).
+    /// Any dataset error ([`crate::dataset::DatasetError`]: it names the file and line); with
+    /// [`ReplayOptions::strict`], a frame that would be skipped (the error names the first few).
     pub fn open(dir: &Path, options: ReplayOptions) -> Result<Self> {
         let dataset = Dataset::open(dir, &options.dataset)?;
+        if let Some(text) = skipped_frames_text(&dataset, SKIPPED_FRAMES_SHOWN)
+            && options.strict
+        {
+            bail!(
+                "--strict: {text}\nnothing was run (without --strict they are left out, with a \
+                 warning)"
+            );
+        }
         let calibration_note = calibration_note(&dataset);
         Ok(Self { dataset, options, calibration_note })
     }
@@ -116,7 +135,7 @@ impl Replay {
     fn track(self, mode: TrackMode, out: &Path) -> Result<RunOutputs> {
         let Self { dataset, options, calibration_note } = self;
         let (profile, depth_level) = (dataset.profile(), dataset.depth_level());
-        let (frames, skipped) = (dataset.len(), dataset.skipped().len());
+        let (frames, skipped) = (dataset.len(), dataset.skipped().to_vec());
         let gt = dataset.groundtruth_trajectory().cloned();
         let c = *dataset.calibration();
         let cam = PinholeCamera::new(c.fx, c.fy, c.cx, c.cy, c.width as usize, c.height as usize)
@@ -144,7 +163,7 @@ impl Replay {
             depth_level,
         );
         let note = format!("{note}; {calibration_note}");
-        let written = write_odometry(out, &run, gt.as_ref(), profile.name, skipped, note)?;
+        let written = write_odometry(out, &run, gt.as_ref(), profile.name, &skipped, note)?;
         Ok(RunOutputs { report: written.report, evaluation: written.evaluation, wall_s })
     }
 
@@ -152,7 +171,7 @@ impl Replay {
     fn data_path(self, out: &Path) -> Result<RunOutputs> {
         let Self { dataset, options, .. } = self;
         let profile = dataset.profile();
-        let (frames, skipped) = (dataset.len(), dataset.skipped().len());
+        let (frames, skipped) = (dataset.len(), dataset.skipped().to_vec());
         let gt = dataset.groundtruth_trajectory().cloned();
         let mut reader = dataset.into_reader(READ_AHEAD_FRAMES);
         let started = Instant::now();
@@ -164,7 +183,7 @@ impl Replay {
              (W(I), depth coverage); no tracking yet, so no CameraTrajectory.txt and no ATE",
             run.frames, profile.name, run.width, run.height
         );
-        let report = Report::data_path(&run, profile.name, skipped, note);
+        let report = Report::data_path(&run, profile.name, &skipped, note);
         report.write(out)?;
         if let Some(gt) = gt.filter(|g| !g.is_empty()) {
             plot_ground_truth(&gt, &out.join("trajectory.svg"))?;
@@ -180,6 +199,51 @@ impl Replay {
 /// As [`Replay::open`] and [`Replay::run`].
 pub fn replay(dir: &Path, out: &Path, options: ReplayOptions) -> Result<RunOutputs> {
     Replay::open(dir, options)?.run(out)
+}
+
+/// The frames `dataset` skips (colour images of `rgb.txt` missing or without a depth image
+/// within the limit), for the console: their count, then at most `shown` of them named with the
+/// reason, one per line; `None` when no frame is skipped.
+pub fn skipped_frames_text(dataset: &Dataset, shown: usize) -> Option<String> {
+    let frames: Vec<_> = dataset.skipped_frames().collect();
+    let first = frames.first()?;
+    let mut text = format!(
+        "{} of the {} frames listed in {} skipped:",
+        frames.len(),
+        dataset.listed_frames(),
+        first.list.display()
+    );
+    for s in frames.iter().take(shown) {
+        text.push_str(&format!("\n  {s}"));
+    }
+    if frames.len() > shown {
+        text.push_str(&format!("\n  ... and {} more", frames.len() - shown));
+    }
+    Some(text)
+}
+
+/// The depth images `dataset` does not use (missing, or without a colour image within the
+/// limit), counted in one line for the console; `None` when it uses every one. They are no
+/// frames: TUM's two streams run on clocks of their own, and a few are normal.
+pub fn unused_depth_text(dataset: &Dataset) -> Option<String> {
+    let depth: Vec<_> = dataset.skipped().iter().filter(|s| s.stream == Stream::Depth).collect();
+    let first = depth.first()?;
+    let missing = depth.iter().filter(|s| s.reason == SkipReason::Missing).count();
+    let unpaired = depth.len() - missing;
+    let mut why = Vec::new();
+    if missing > 0 {
+        why.push(format!("{missing} missing"));
+    }
+    if unpaired > 0 {
+        why.push(format!("{unpaired} with no colour image within {} s", first.max_dt_s));
+    }
+    let images = if depth.len() == 1 { "image" } else { "images" };
+    Some(format!(
+        "{} depth {images} listed in {} not used: {}",
+        depth.len(),
+        first.list.display(),
+        why.join(", ")
+    ))
 }
 
 /// Where the dataset's calibration came from, and whether a lens distortion is removed from its

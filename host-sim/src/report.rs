@@ -8,6 +8,7 @@ use ferroslam_core::loops::LoopStats;
 use serde::Serialize;
 use sha2::Digest;
 
+use crate::dataset::{SkippedFrame, Stream};
 use crate::eval::{self, EvalReport};
 use crate::plot;
 use crate::run::{
@@ -86,8 +87,14 @@ pub struct Report {
     pub state_bytes: usize,
     /// SHA-256 of CameraTrajectory.txt; null when none was written.
     pub output_sha256: Option<String>,
-    /// Frames the dataset lists but that could not be used (missing files, no association).
+    /// Frames `rgb.txt` lists that were not played: their colour image is missing, or no depth
+    /// image lies within the association limit. With `frames` they make up the frames listed,
+    /// unless some were left out on purpose (`--skip-frames`, `--max-frames`, `--frames`), which
+    /// are not counted. Depth images without a frame are not frames: they are only in
+    /// `skipped_images`.
     pub skipped_frames: usize,
+    /// Every listed image not used, colour (the skipped frames) and depth, by list and line.
+    pub skipped_images: Vec<SkippedImage>,
     /// Median `W(I)` (paper Eq. 3) over the frames, gray levels.
     pub total_variation_median: f64,
     /// Mean fraction of pixels with depth.
@@ -105,6 +112,34 @@ pub struct Report {
     /// Per-frame front-end figures (odometry and SLAM modes).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub odometry: Vec<TrackedFrame>,
+}
+
+/// A listed image a replay did not use (report.json `skipped_images`).
+#[derive(Debug, Clone, Serialize)]
+pub struct SkippedImage {
+    /// The list naming it: `.../rgb.txt` (a frame) or `.../depth.txt`.
+    pub list: String,
+    /// 1-based line in that list.
+    pub line: usize,
+    /// Its timestamp, seconds.
+    pub timestamp_s: f64,
+    /// The image file.
+    pub path: String,
+    /// Why it was not used: `file missing`, or `no depth image within 0.02 s` (or `colour`),
+    /// with the missing partner when there is one.
+    pub reason: String,
+}
+
+impl From<&SkippedFrame> for SkippedImage {
+    fn from(s: &SkippedFrame) -> Self {
+        Self {
+            list: s.list.display().to_string(),
+            line: s.line,
+            timestamp_s: s.timestamp_s,
+            path: s.path.display().to_string(),
+            reason: s.why(),
+        }
+    }
 }
 
 /// Loops of a run (report.json `loops`).
@@ -127,11 +162,12 @@ pub struct Relocalizations {
 }
 
 impl Report {
-    /// A data-path report of `run`; `note` says what the run did.
+    /// A data-path report of `run`; `skipped` are the listed images not used (none for the
+    /// demo); `note` says what the run did.
     pub fn data_path(
         run: &DataPathRun,
         profile: &'static str,
-        skipped: usize,
+        skipped: &[SkippedFrame],
         note: String,
     ) -> Self {
         let n = run.frames.max(1) as f64;
@@ -156,7 +192,8 @@ impl Report {
             rpe_trans_m_per_s: None,
             state_bytes: 0,
             output_sha256: None,
-            skipped_frames: skipped,
+            skipped_frames: skipped.iter().filter(|s| s.stream == Stream::Rgb).count(),
+            skipped_images: skipped.iter().map(SkippedImage::from).collect(),
             total_variation_median: median(run.per_frame.iter().map(|f| f.total_variation as f64)),
             valid_depth_fraction_mean: run
                 .per_frame
@@ -178,11 +215,11 @@ impl Report {
     }
 
     /// An odometry report of `run`, with `evaluation` against ground truth when there is one and
-    /// `sha256` of the CameraTrajectory.txt written.
+    /// `sha256` of the CameraTrajectory.txt written; `skipped` as for [`Report::data_path`].
     pub fn odometry(
         run: &TrackingRun,
         profile: &'static str,
-        skipped: usize,
+        skipped: &[SkippedFrame],
         note: String,
         evaluation: Option<&EvalReport>,
         online_ate: Option<f64>,
@@ -252,7 +289,7 @@ pub struct RunOutputs {
 }
 
 /// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
-/// `trajectory.svg` and `ate.svg` into `dir`.
+/// `trajectory.svg` and `ate.svg` into `dir`; `skipped` are the listed images the run did not use.
 ///
 /// # Errors
 /// A file that cannot be written. A trajectory that cannot be evaluated (e.g. no estimated pose
@@ -262,7 +299,7 @@ pub fn write_odometry(
     run: &TrackingRun,
     gt: Option<&Trajectory>,
     profile: &'static str,
-    skipped: usize,
+    skipped: &[SkippedFrame],
     note: String,
 ) -> Result<OdometryOutputs> {
     // Hash the very text written, rather than reading the file back.
@@ -331,17 +368,23 @@ pub fn with_depth_level(note: String, depth_level: u8) -> String {
     format!("{note}; depth kept {depth_level} halving(s) coarser than the gray image ({s}x{s} px)")
 }
 
-/// The one-line summary of a tracking run that took `wall_s` seconds.
+/// The one-line summary of a tracking run that took `wall_s` seconds. Each frame played is
+/// counted once (tracked, relocalised, re-initialised, lost or before the first keyframe); the
+/// frames listed but skipped, when there are any, are said apart.
 pub fn summary(report: &Report, wall_s: f64) -> String {
     let ate = match (report.ate_rmse_m, &report.evaluation_error) {
         (Some(a), _) => format!("{a:.4} m"),
         (None, Some(why)) => format!("n/a ({why})"),
         (None, None) => "n/a (no ground truth)".to_owned(),
     };
+    let skipped = match report.skipped_frames {
+        0 => String::new(),
+        n => format!(" {n} more listed in rgb.txt skipped, not played;"),
+    };
     format!(
         "{} ({}): {} frames: {} tracked, {} relocalised, {} re-initialised, {} lost, {} before \
-         the first keyframe; {} keyframes;{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} ms median per frame \
-         in the core); core state {} bytes",
+         the first keyframe;{skipped} {} keyframes;{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} \
+         ms median per frame in the core); core state {} bytes",
         report.mode,
         report.profile,
         report.frames,
@@ -360,4 +403,17 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
         report.host_cost.process_median / 1000.0,
         report.state_bytes,
     )
+}
+
+/// `1234567` as `1,234,567`: counts printed for a reader.
+pub fn thousands(value: u64) -> String {
+    let digits = value.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
 }

@@ -161,8 +161,9 @@ fn missing_lists_and_calibration_name_the_path() {
         let tmp = fixture(2);
         fs::remove_file(tmp.path().join(name)).unwrap();
         let err = open_err(tmp.path(), &vga());
-        assert!(matches!(err, DatasetError::Io { ref path, .. } if path.ends_with(name)), "{err}");
-        assert_mentions(&err, &[&path_str(tmp.path(), name), "cannot read"]);
+        assert!(matches!(err, DatasetError::NoList { list, .. } if list == name), "{err}");
+        let folder = tmp.path().display().to_string();
+        assert_mentions(&err, &[&format!("{folder} has no {name}"), "not a TUM RGB-D folder"]);
     }
     // A folder without calibration.toml (and no TUM sensor in its name): the error names the
     // folder and says how to give a calibration.
@@ -172,8 +173,10 @@ fn missing_lists_and_calibration_name_the_path() {
     assert!(matches!(err, DatasetError::NoCalibration { .. }), "{err}");
     let folder = tmp.path().display().to_string();
     assert_mentions(&err, &[&folder, "no calibration.toml", "--calibration", "--preset"]);
+    // A folder that is not there is said so, not as the first file that cannot be read in it.
     let err = open_err(Path::new("/nonexistent/ferroslam/dataset"), &vga());
-    assert_mentions(&err, &["/nonexistent/ferroslam/dataset/calibration.toml"]);
+    assert!(matches!(err, DatasetError::NoFolder { .. }), "{err}");
+    assert_mentions(&err, &["dataset folder /nonexistent/ferroslam/dataset does not exist"]);
 }
 
 #[test]

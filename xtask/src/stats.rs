@@ -50,18 +50,7 @@ pub fn nearest_rank(sorted: &[u64], p: usize) -> u64 {
     sorted.get(rank - 1).copied().unwrap_or(0)
 }
 
-/// `1234567` as `1,234,567`.
-pub fn thousands(value: u64) -> String {
-    let digits = value.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
+pub use ferroslam_sim::report::thousands;
 
 /// `14_391_120` as `14.39 M`: instruction counts in millions, two decimals.
 pub fn millions(value: u64) -> String {

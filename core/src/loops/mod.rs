@@ -128,6 +128,8 @@ pub struct PlaceMemory<S> {
     index: [KeyBits; INDEXED_RECORDS],
     /// One record's bytes, read or written.
     buf: RecordBytes,
+    /// The slot of a remembered record still in `buf`, not yet written ([`Places::flush`]).
+    pending: Option<usize>,
     /// Whether keyframes leaving the map are left unremembered ([`Self::freeze`]).
     frozen: bool,
     /// The creation number after every record's ([`Places::first_free_seq`]).
@@ -171,6 +173,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             },
             index: [KeyBits([0; KEY_BITS_WORDS]); INDEXED_RECORDS],
             buf: [0; crate::config::capacity::PLACE_RECORD_BYTES],
+            pending: None,
             frozen: false,
             next_seq: 0,
         }
@@ -183,6 +186,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// [`PlaceStats::store_errors`] and kept in its slot, ranked last.
     pub fn attach(&mut self, store: S) {
         self.store = store;
+        self.pending = None;
         self.len = self.store.held().min(self.store.capacity()).min(INDEXED_RECORDS);
         self.next_seq = 0;
         for slot in 0..self.len {
@@ -204,6 +208,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// # Errors
     /// The store's, counted in [`PlaceStats::store_errors`]; the last commit stands then.
     pub fn commit(&mut self) -> Result<(), S::Error> {
+        self.write_pending();
         let done = self.store.commit(self.len);
         if done.is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
@@ -222,6 +227,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         &mut self,
         mut write: impl FnMut(&[u8]) -> Result<(), E>,
     ) -> Result<(), SaveError<E>> {
+        self.write_pending();
         let mut checksum = RecordsChecksum::default();
         for pass in [false, true] {
             if pass {
@@ -252,6 +258,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// fails a write is counted in [`PlaceStats::store_errors`] and keeps what was written.
     pub fn load(&mut self, file: &[u8]) -> Result<(), MapFileError> {
         check_map_file(file, self.store.capacity().min(INDEXED_RECORDS))?;
+        self.pending = None;
         self.len = 0;
         self.next_seq = 0;
         for r in map_records(file) {
@@ -303,6 +310,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
 
     /// The record in slot `slot`, or `None` (counted as a store error) when it cannot be read.
     fn read(&mut self, slot: usize) -> Option<PlaceRecord> {
+        self.write_pending();
         let record = self
             .store
             .read(slot, &mut self.buf)
@@ -312,6 +320,16 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
         }
         record
+    }
+
+    /// Writes the record [`Places::remember`] left in `buf`, if any (counted in
+    /// [`PlaceStats::store_errors`] when the store fails).
+    fn write_pending(&mut self) {
+        if let Some(slot) = self.pending.take()
+            && self.store.write(slot, &self.buf).is_err()
+        {
+            self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+        }
     }
 
     /// The slot a new record at `t_wc` with key `key` goes to: the next free one, or when the
@@ -374,6 +392,10 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.next_seq
     }
 
+    fn flush(&mut self) {
+        self.write_pending();
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
         if self.frozen {
             return;
@@ -383,11 +405,10 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             return;
         };
         let Some(slot) = self.slot_for(&record.t_wc, &record.key) else { return };
+        // Written by the next flush (the back end's step) or before the next read.
+        self.write_pending();
         record.encode(&mut self.buf);
-        if self.store.write(slot, &self.buf).is_err() {
-            self.stats.store_errors = self.stats.store_errors.saturating_add(1);
-            return;
-        }
+        self.pending = Some(slot);
         if let Some(bits) = self.index.get_mut(slot) {
             *bits = record.key.bits();
         }

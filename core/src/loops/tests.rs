@@ -217,6 +217,12 @@ fn a_full_store_replaces_its_most_redundant_record() {
     }
     let s = memory.stats();
     assert_eq!((memory.len(), s.remembered, s.thinned, s.store_errors), (2, 3, 1, 0));
+    // The last record waits in the memory until flushed (the back end's step).
+    let mut store = memory.store().clone();
+    let mut buf = [0; PLACE_RECORD_BYTES];
+    store.read(0, &mut buf).unwrap();
+    assert_eq!(PlaceRecord::decode(&buf).unwrap().t_wc.translation.x, 0.0, "not written yet");
+    memory.flush();
     let mut store = memory.store().clone();
     let mut buf = [0; PLACE_RECORD_BYTES];
     let xs = [0, 1].map(|slot| {
@@ -361,6 +367,7 @@ fn a_full_store_reads_a_shortlist_to_thin_and_to_query() {
     memory.remember(&map, kf);
     assert!(memory.store().reads - before <= SHORTLIST, "thinning reads a shortlist");
     assert_eq!(memory.stats().thinned, 1);
+    memory.flush();
     let mut store = memory.store().clone();
     let mut buf = [0; PLACE_RECORD_BYTES];
     let x = |store: &mut Counting<64>, buf: &mut RecordBytes, slot| {
@@ -410,7 +417,7 @@ fn a_saved_map_loads_and_saves_to_the_same_bytes_and_relocalizes() {
     let mut rng = TestRng::new(14);
     let mut memory = three_records::<8>(&mut rng);
     let file = saved(&mut memory);
-    assert_eq!(file.len(), 16 + 3 * PLACE_RECORD_BYTES);
+    assert_eq!(file.len(), crate::persist::MAP_HEADER_BYTES + 3 * PLACE_RECORD_BYTES);
     let mut loaded = PlaceMemory::new(RamStore::<8>::new(), 1);
     assert!(!loaded.holds_places());
     loaded.load(&file).unwrap();
@@ -435,25 +442,29 @@ fn a_damaged_map_file_is_refused_whole_with_what_is_wrong() {
     let err = small.load(&file).unwrap_err();
     assert_eq!(err, crate::persist::MapFileError::TooManyRecords { records: 3, capacity: 2 });
     assert_eq!(saved(&mut small), small_before);
+    let h = crate::persist::MAP_HEADER_BYTES;
     let mut flipped = file.clone();
-    flipped[16 + PLACE_RECORD_BYTES + 100] ^= 0x04;
+    flipped[h + PLACE_RECORD_BYTES + 100] ^= 0x04;
     let mut version = file.clone();
-    version[4] = 2;
+    version[4] = 9;
+    let mut layout = file.clone();
+    layout[5] = 32;
     let mut unreadable = file.clone();
     // A record whose bytes are all erased (the checksum in the header made to match).
-    unreadable[16..16 + PLACE_RECORD_BYTES].fill(0xFF);
+    unreadable[h..h + PLACE_RECORD_BYTES].fill(0xFF);
     let mut sum = crate::persist::RecordsChecksum::default();
-    unreadable[16..].chunks(PLACE_RECORD_BYTES).for_each(|r| sum.add(r));
-    unreadable[12..16].copy_from_slice(&sum.value().to_le_bytes());
+    unreadable[h..].chunks(PLACE_RECORD_BYTES).for_each(|r| sum.add(r));
+    unreadable[h - 4..h].copy_from_slice(&sum.value().to_le_bytes());
     let mut trailing = file.clone();
     trailing.push(0);
     for (bad, wrong) in [
         (&file[..file.len() - 1], "Truncated"),
         (&trailing[..], "TrailingBytes"),
         (&flipped[..], "Checksum"),
-        (&version[..], "Version(2)"),
+        (&version[..], "Version(9)"),
+        (&layout[..], "Layout(RecordLayout { record_bytes: 1024, points: 32"),
         (&unreadable[..], "Record { index: 0 }"),
-        (&file[..16], "Truncated"),
+        (&file[..h], "Truncated"),
         (&b"not a map at all"[..], "NotAMap"),
     ] {
         let err = memory.load(bad).unwrap_err();

@@ -1,9 +1,10 @@
 //! The map file: the long-term store's records ([`crate::map::PlaceRecord`], 1 KiB each) behind
-//! a 16-byte header, so a map saved by one run can be loaded by the next.
+//! a 20-byte header, so a map saved by one run can be loaded by the next.
 //!
-//! Layout (little-endian): `FSMP` (4 bytes), format version (1), 0 (1), bytes per record (2),
-//! records (4), FNV-1a checksum of every record's bytes (4); then the records, each as the store
-//! holds it (with its own checksum). A reader checks the header before it takes any record and
+//! Layout (little-endian): `FSMP` (4 bytes), format version (1); the record layout the writer's
+//! capacities gave: verification points per record (1), place key width and height in cells
+//! (1 + 1), bytes per record (2), 0 (2); records (4), FNV-1a checksum of every record's bytes
+//! (4); then the records, each as the store holds it (with its own checksum). A reader checks the header before it takes any record and
 //! every record before the map is used, so a file from another format, truncated or with one bit
 //! flipped is refused whole, with an error that names what is wrong ([`MapFileError`]).
 //!
@@ -24,17 +25,43 @@ pub use flash::{
 };
 pub use slice_flash::{SECTOR_BYTES, SliceFlash, SliceFlashError};
 
-use crate::config::capacity::PLACE_RECORD_BYTES;
+use crate::config::capacity::{PLACE_KEY_H, PLACE_KEY_W, PLACE_POINTS, PLACE_RECORD_BYTES};
 use crate::map::{Fnv1a, PlaceRecord};
 
 /// The file's first bytes.
 pub const MAP_MAGIC: [u8; 4] = *b"FSMP";
 
-/// The format version this build writes and reads.
-pub const MAP_VERSION: u8 = 1;
+/// The format version this build writes and reads (1: a 16-byte header without the layout).
+pub const MAP_VERSION: u8 = 2;
 
 /// Bytes of the header before the records.
-pub const MAP_HEADER_BYTES: usize = 16;
+pub const MAP_HEADER_BYTES: usize = 20;
+
+/// The record layout this build's capacities give: what a map file's header must state.
+pub const MAP_LAYOUT: RecordLayout = RecordLayout {
+    record_bytes: PLACE_RECORD_BYTES as u16,
+    points: PLACE_POINTS as u8,
+    key: [PLACE_KEY_W as u8, PLACE_KEY_H as u8],
+};
+
+/// The capacities that shape a record: a file written by a build with other ones cannot be read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RecordLayout {
+    /// Bytes of one record.
+    pub record_bytes: u16,
+    /// Verification points a record holds at most.
+    pub points: u8,
+    /// The place key's width and height, cells.
+    pub key: [u8; 2],
+}
+
+impl fmt::Display for RecordLayout {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [w, h] = self.key;
+        write!(f, "records of {} bytes, {} points, a {w} x {h} key", self.record_bytes, self.points)
+    }
+}
 
 /// A map file's header: how many records follow and their checksum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,12 +76,14 @@ impl MapHeader {
     /// The header's bytes.
     pub fn encode(&self) -> [u8; MAP_HEADER_BYTES] {
         let mut out = [0u8; MAP_HEADER_BYTES];
-        let record_bytes = PLACE_RECORD_BYTES as u16;
-        let fields: [&[u8]; 6] = [
+        let l = MAP_LAYOUT;
+        let fields: [&[u8]; 8] = [
             &MAP_MAGIC,
             &[MAP_VERSION],
-            &[0],
-            &record_bytes.to_le_bytes(),
+            &[l.points],
+            &l.key,
+            &l.record_bytes.to_le_bytes(),
+            &[0, 0],
             &self.records.to_le_bytes(),
             &self.checksum.to_le_bytes(),
         ];
@@ -72,31 +101,30 @@ impl MapHeader {
     ///
     /// # Errors
     /// [`MapFileError::Truncated`], [`MapFileError::NotAMap`], [`MapFileError::Version`] or
-    /// [`MapFileError::RecordBytes`].
+    /// [`MapFileError::Layout`]; the magic and the version are checked first, so a file of
+    /// another version is named as such even when shorter than this version's header.
     pub fn decode(bytes: &[u8]) -> Result<Self, MapFileError> {
-        let Some(h) = bytes.get(..MAP_HEADER_BYTES) else {
-            return Err(MapFileError::Truncated { expected: MAP_HEADER_BYTES, found: bytes.len() });
-        };
-        let word = |at: usize| {
-            let mut w = [0u8; 4];
-            if let Some(src) = h.get(at..at + 4) {
-                w.copy_from_slice(src);
-            }
-            u32::from_le_bytes(w)
-        };
-        if h.get(..4) != Some(&MAP_MAGIC[..]) {
+        let byte = |at: usize| bytes.get(at).copied().unwrap_or(0);
+        let word =
+            |at: usize| u32::from_le_bytes([byte(at), byte(at + 1), byte(at + 2), byte(at + 3)]);
+        if bytes.len() >= 4 && bytes.get(..4) != Some(&MAP_MAGIC[..]) {
             return Err(MapFileError::NotAMap);
         }
-        let version = h.get(4).copied().unwrap_or(0);
-        if version != MAP_VERSION {
-            return Err(MapFileError::Version(version));
+        if bytes.len() > 4 && byte(4) != MAP_VERSION {
+            return Err(MapFileError::Version(byte(4)));
         }
-        let record_bytes =
-            u16::from_le_bytes([h.get(6).copied().unwrap_or(0), h.get(7).copied().unwrap_or(0)]);
-        if usize::from(record_bytes) != PLACE_RECORD_BYTES {
-            return Err(MapFileError::RecordBytes(record_bytes));
+        if bytes.len() < MAP_HEADER_BYTES {
+            return Err(MapFileError::Truncated { expected: MAP_HEADER_BYTES, found: bytes.len() });
         }
-        Ok(Self { records: word(8), checksum: word(12) })
+        let layout = RecordLayout {
+            points: byte(5),
+            key: [byte(6), byte(7)],
+            record_bytes: u16::from_le_bytes([byte(8), byte(9)]),
+        };
+        if layout != MAP_LAYOUT {
+            return Err(MapFileError::Layout(layout));
+        }
+        Ok(Self { records: word(12), checksum: word(16) })
     }
 
     /// Bytes of the whole file this header describes.
@@ -170,8 +198,8 @@ pub enum MapFileError {
     NotAMap,
     /// A format version this build does not read.
     Version(u8),
-    /// Records of another size: a build with other capacities wrote it.
-    RecordBytes(u16),
+    /// Records of another layout: a build with other capacities wrote it (its layout).
+    Layout(RecordLayout),
     /// The records' checksum does not match the header's: bytes changed since it was written.
     Checksum {
         /// The header's.
@@ -206,9 +234,9 @@ impl fmt::Display for MapFileError {
             Self::Version(v) => {
                 write!(f, "map format version {v}; this build reads version {MAP_VERSION}")
             }
-            Self::RecordBytes(n) => write!(
+            Self::Layout(l) => write!(
                 f,
-                "records of {n} bytes; this build's are {PLACE_RECORD_BYTES} (other capacities)"
+                "written by a build with other capacities: {l}; this build's are {MAP_LAYOUT}"
             ),
             Self::Checksum { stored, computed } => write!(
                 f,

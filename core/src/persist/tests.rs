@@ -1,6 +1,10 @@
 //! Map file header tests. Test code only: compiled under #[cfg(test)] from `persist/mod.rs`.
 //! (Saving and loading a place memory: `loops/tests.rs`.)
 
+extern crate std;
+
+use std::string::ToString;
+
 use super::*;
 
 #[test]
@@ -8,21 +12,30 @@ fn a_header_round_trips_and_a_wrong_one_says_what_is_wrong() {
     let h = MapHeader { records: 300, checksum: 0xDEAD_BEEF };
     let bytes = h.encode();
     assert_eq!(&bytes[..4], b"FSMP");
+    assert_eq!(&bytes[4..10], &[2, 48, 16, 12, 0, 4], "version, points, key, record bytes");
     assert_eq!(MapHeader::decode(&bytes), Ok(h));
-    assert_eq!(h.file_bytes(), 16 + 300 * 1024);
+    assert_eq!(h.file_bytes(), 20 + 300 * 1024);
     assert_eq!(
         MapHeader::decode(&bytes[..10]),
-        Err(MapFileError::Truncated { expected: 16, found: 10 })
+        Err(MapFileError::Truncated { expected: 20, found: 10 })
     );
     let mut other = bytes;
     other[0] = b'X';
     assert_eq!(MapHeader::decode(&other), Err(MapFileError::NotAMap));
+    // A version 1 file (16-byte header) is named by its version, not as truncated.
     let mut other = bytes;
-    other[4] = 9;
-    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Version(9)));
+    other[4] = 1;
+    assert_eq!(MapHeader::decode(&other[..16]), Err(MapFileError::Version(1)));
     let mut other = bytes;
-    other[6..8].copy_from_slice(&512u16.to_le_bytes());
-    assert_eq!(MapHeader::decode(&other), Err(MapFileError::RecordBytes(512)));
+    other[5] = 32;
+    other[8..10].copy_from_slice(&512u16.to_le_bytes());
+    let layout = RecordLayout { record_bytes: 512, points: 32, key: [16, 12] };
+    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Layout(layout)));
+    assert_eq!(
+        MapFileError::Layout(layout).to_string(),
+        "written by a build with other capacities: records of 512 bytes, 32 points, a 16 x 12 \
+         key; this build's are records of 1024 bytes, 48 points, a 16 x 12 key"
+    );
 }
 
 #[test]

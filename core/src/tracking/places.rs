@@ -61,8 +61,13 @@ pub trait Places {
     /// never share one.
     fn first_free_seq(&self) -> u32;
 
-    /// Keyframe `kf` of `map` is about to leave the map: remember it.
+    /// Keyframe `kf` of `map` is about to leave the map: remember it. The store's write may
+    /// wait for [`Self::flush`] (or the memory's next read of its store).
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId);
+
+    /// Writes what [`Self::remember`] left to write: called after the back end's step, so that
+    /// a flash erase and program do not stall the frame's tracking. Nothing to do by default.
+    fn flush(&mut self) {}
 
     /// The pose `t_wc` of the camera that saw `query`, when a remembered place or a keyframe of
     /// the active `map` is verified in it; `None` otherwise.

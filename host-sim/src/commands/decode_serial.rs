@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use ferroslam_core::frame::TelemetrySink;
-use ferroslam_core::wire::{Message, PoseFlags, TrackingState};
+use ferroslam_core::wire::{
+    FaultCode, FaultMessage, Message, PoseFlags, StatusMessage, TrackingState,
+};
 
 use crate::serial::{TumPoseWriter, decode_capture};
 
@@ -25,13 +27,21 @@ pub struct DecodeSerialArgs {
 /// and the counts of what was lost to stderr.
 ///
 /// # Errors
-/// An unreadable file; a file in which no frame decodes although it is not empty.
+/// An unreadable file; an empty file; a file in which no frame decodes.
 pub fn run(args: &DecodeSerialArgs) -> Result<()> {
     let bytes = std::fs::read(&args.file)
         .with_context(|| format!("cannot read the capture {}", args.file.display()))?;
+    if bytes.is_empty() {
+        bail!(
+            "{}: the capture is empty (0 bytes): nothing was received, so there is nothing to \
+             decode (was the UART captured, e.g. QEMU's -serial file:FILE, and did the firmware \
+             run?)",
+            args.file.display()
+        );
+    }
     let capture = decode_capture(&bytes);
     let s = capture.stats;
-    if !bytes.is_empty() && s.frames_decoded == 0 {
+    if s.frames_decoded == 0 {
         bail!(
             "{}: {} bytes, no frame of the ferroslam wire format (schema version {}) in them: {} \
              frames dropped, {} of another schema version",
@@ -53,8 +63,8 @@ pub fn run(args: &DecodeSerialArgs) -> Result<()> {
     }
     for m in &capture.messages {
         match m {
-            Message::Status(st) => eprintln!("status: {st:?}"),
-            Message::Fault(f) => eprintln!("fault: {f:?}"),
+            Message::Status(st) => eprintln!("status: {}", status_words(st)),
+            Message::Fault(f) => eprintln!("fault: {}", fault_words(f)),
             Message::Pose(_) | Message::Cost(_) => {}
         }
     }
@@ -73,6 +83,40 @@ pub fn run(args: &DecodeSerialArgs) -> Result<()> {
         s.bytes_skipped,
     );
     Ok(())
+}
+
+/// A status message in words: `500 frames, 499 tracked, 0 lost, ..., peak stack 37,716 B`.
+fn status_words(s: &StatusMessage) -> String {
+    let stack = match s.stack_peak_bytes {
+        0 => "peak stack not measured".to_owned(),
+        bytes => format!("peak stack {} B", crate::report::thousands(u64::from(bytes))),
+    };
+    format!(
+        "{} frames, {} tracked, {} lost, {} re-initialised, {} relocalised, {} keyframes, {} \
+         recoveries, {} faults, state {} B, {stack}",
+        s.frames,
+        s.tracked_frames,
+        s.lost_frames,
+        s.reinitializations,
+        s.relocalizations,
+        s.keyframes,
+        s.recoveries,
+        s.faults,
+        crate::report::thousands(u64::from(s.state_bytes)),
+    )
+}
+
+/// A fault message in words: `frame 12: the frame source failed (detail 2)`.
+fn fault_words(f: &FaultMessage) -> String {
+    let what = match f.code {
+        FaultCode::FrameSource => "the frame source failed".to_owned(),
+        FaultCode::FrameRejected => "the pipeline rejected the frame".to_owned(),
+        FaultCode::Telemetry => "a telemetry message could not be encoded".to_owned(),
+        FaultCode::Configuration => "the board's configuration is unusable".to_owned(),
+        FaultCode::StackOverflow => "the stack reached its limit".to_owned(),
+        other => format!("fault {other:?}"),
+    };
+    format!("frame {}: {what} (detail {})", f.frame_index, f.detail)
 }
 
 /// One row per pose: index, time, state, flags, inliers, position, and the frame's instructions
@@ -114,4 +158,34 @@ fn print_table(mut out: impl std::io::Write, messages: &[Message]) -> std::io::R
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn status_and_faults_read_as_words() {
+        let status = StatusMessage {
+            frames: 500,
+            tracked_frames: 499,
+            lost_frames: 1,
+            keyframes: 31,
+            state_bytes: 356_536,
+            stack_peak_bytes: 37_716,
+            ..StatusMessage::default()
+        };
+        assert_eq!(
+            status_words(&status),
+            "500 frames, 499 tracked, 1 lost, 0 re-initialised, 0 relocalised, 31 keyframes, 0 \
+             recoveries, 0 faults, state 356,536 B, peak stack 37,716 B"
+        );
+        let unmeasured = StatusMessage { stack_peak_bytes: 0, ..status };
+        assert!(status_words(&unmeasured).ends_with("peak stack not measured"));
+        let fault = FaultMessage { frame_index: 12, code: FaultCode::FrameSource, detail: 2 };
+        assert_eq!(fault_words(&fault), "frame 12: the frame source failed (detail 2)");
+        for (n, text) in [(0, "0"), (999, "999"), (1000, "1,000"), (u32::MAX, "4,294,967,295")] {
+            assert_eq!(crate::report::thousands(u64::from(n)), text);
+        }
+    }
 }

@@ -4,13 +4,13 @@
 use std::ffi::OsString;
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 use clap::Args;
 
 use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
 use crate::demo::{DemoOptions, demo, write_dataset};
 use crate::report::{RunOutputs, summary};
-use crate::synth::SynthOptions;
+use crate::synth::{SynthError, SynthOptions};
 
 /// Arguments of `demo`.
 #[derive(Debug, Args)]
@@ -115,6 +115,28 @@ impl DemoArgs {
         flags
     }
 
+    /// Checks the options that shape the rendered sequence ([`SynthOptions::validate`]), naming
+    /// the command-line option at fault and its value as typed (`--holes 5: must be finite, 0
+    /// to 0.9`) rather than the library's field.
+    ///
+    /// # Errors
+    /// The first option out of its range.
+    pub fn check(&self) -> Result<()> {
+        let Err(e) = self.options().synth.validate() else { return Ok(()) };
+        let SynthError::InvalidOption { name, reason } = &e else { return Err(e.into()) };
+        let (flag, value) = match *name {
+            "frames" => ("--frames", self.frames.to_string()),
+            "width" | "height" => ("--size", format!("{}x{}", self.size.0, self.size.1)),
+            "depth_noise_k" => ("--depth-noise", self.depth_noise.to_string()),
+            "hole_fraction" => ("--holes", self.holes.to_string()),
+            "motion_blur_samples" => ("--blur", self.blur.to_string()),
+            "shake" => ("--shake", self.shake.to_string()),
+            // The options the command line does not set keep their valid defaults.
+            _ => return Err(e.into()),
+        };
+        bail!("{flag} {value}: {reason}")
+    }
+
     /// The demo these arguments ask for, with a progress bar.
     pub fn options(&self) -> DemoOptions {
         let synth = SynthOptions {
@@ -142,8 +164,9 @@ impl DemoArgs {
 /// Runs `demo`: the library's [`demo`], and its summary on stdout.
 ///
 /// # Errors
-/// Invalid options, or a file that cannot be written.
+/// Invalid options (naming the command-line option), or a file that cannot be written.
 pub fn run(args: &DemoArgs) -> Result<()> {
+    args.check()?;
     if let Some(dir) = &args.write_dataset {
         let made_by = format!("ferroslam-sim demo {}", args.synth_flags());
         let frames = write_dataset(dir, &args.options(), &made_by)?;

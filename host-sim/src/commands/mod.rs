@@ -4,7 +4,7 @@
 //! ferroslam-sim demo [--out DIR] [--mode odometry|data-path] [--frames N] [--depth-noise K]
 //!                    [--holes F] [--blur N] [--shake A] [--fast-rotation] [--seed S]
 //! ferroslam-sim replay DATASET --out DIR [--profile qvga|vga] [--mode odometry|data-path]
-//!                      [--preset tum1|tum2|tum3] [--max-frames N]
+//!                      [--preset tum1|tum2|tum3] [--max-frames N] [--strict]
 //! ferroslam-sim eval GROUNDTRUTH ESTIMATE [--json]     ATE/RPE, evo-compatible
 //! ferroslam-sim decode-serial FILE [--tum]             the firmware's UART capture: poses, losses
 //! ferroslam-sim calibrate-depth DATASET --out FILE [--check FILE] [--start N] [--step N]

@@ -10,7 +10,9 @@ use clap::Args;
 use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
 use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
-use crate::replay::{Replay, ReplayOptions};
+use crate::replay::{
+    Replay, ReplayOptions, SKIPPED_FRAMES_SHOWN, skipped_frames_text, unused_depth_text,
+};
 use crate::report::{RunOutputs, summary};
 use crate::run::MapFiles;
 
@@ -72,6 +74,11 @@ pub struct ReplayArgs {
     /// after is the loaded one).
     #[arg(long, requires = "load_map")]
     pub localize: bool,
+    /// Fail (exit status 1, nothing run) when a frame listed in rgb.txt would be skipped: its
+    /// image missing, or no depth image within 0.02 s of it. Without it such frames are left
+    /// out with a warning, and report.json counts and lists them.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 impl ReplayArgs {
@@ -111,18 +118,27 @@ impl ReplayArgs {
                 save: self.save_map.clone(),
                 localize: self.localize,
             },
+            strict: self.strict,
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
         }
     }
 }
 
-/// Runs `replay`: the library's [`Replay`], and its summary on stdout (a note on stderr when the
-/// calibration was chosen by the folder's name).
+/// Runs `replay`: the library's [`Replay`], and its summary on stdout; on stderr, before the
+/// run, a warning naming the frames skipped, a note on the depth images not used, and a note
+/// when the calibration was chosen by the folder's name.
 ///
 /// # Errors
-/// Any dataset error (it names the file and line), or a file that cannot be written.
+/// Any dataset error (it names the file and line); with `--strict`, a frame skipped; a file that
+/// cannot be written.
 pub fn run(args: &ReplayArgs) -> Result<()> {
     let replay = Replay::open(&args.dataset, args.options())?;
+    if let Some(text) = skipped_frames_text(replay.dataset(), SKIPPED_FRAMES_SHOWN) {
+        eprintln!("warning: {text}\n  (report.json lists them; --strict refuses to run instead)");
+    }
+    if let Some(text) = unused_depth_text(replay.dataset()) {
+        eprintln!("note: {text}");
+    }
     if let CalibrationOrigin::FolderName(_) = replay.dataset().calibration_origin() {
         eprintln!("note: {}", replay.calibration_note());
     }
@@ -134,7 +150,8 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     }
     println!("replay {dataset}: {}", report.note);
     println!(
-        "  W(I) median {:.0}, depth coverage {:.1}%, {} listed frames skipped; wrote {}",
+        "  W(I) median {:.0}, depth coverage {:.1}%, frames listed in rgb.txt but skipped: {}; \
+         wrote {}",
         report.total_variation_median,
         100.0 * report.valid_depth_fraction_mean,
         report.skipped_frames,

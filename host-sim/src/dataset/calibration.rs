@@ -6,6 +6,9 @@ use std::path::Path;
 
 use super::DatasetError;
 use super::lists::read_text;
+use keys::check_keys;
+
+mod keys;
 
 /// Pinhole intrinsics of the (colour) camera and the depth scale, for images of `width` x `height`.
 ///
@@ -87,11 +90,14 @@ impl Calibration {
     /// `depth_scale` (numbers) and `width`, `height` (integers), an optional `[depth]` table for
     /// depth that is not registered to colour: the depth camera's `fx`, `fy`, `cx`, `cy` and its
     /// offset `tx`, `ty`, `tz` in metres (see [`DepthCamera`]), an optional lens distortion and an
-    /// optional `depth_noise_coeff_per_m` (see [`Calibration::depth_noise_coeff_per_m`]). Other
-    /// keys are ignored.
+    /// optional `depth_noise_coeff_per_m` (see [`Calibration::depth_noise_coeff_per_m`]). Any
+    /// other key is refused: a misspelt `k1` or `[depth]` would silently turn off distortion
+    /// removal or registration.
     ///
     /// # Errors
-    /// [`DatasetError::Io`] when the file cannot be read; [`DatasetError::CalibrationSyntax`],
+    /// [`DatasetError::Io`] when the file cannot be read; [`DatasetError::CalibrationUnknownKey`]
+    /// naming the line and the nearest valid key for a key the file does not define;
+    /// [`DatasetError::CalibrationSyntax`],
     /// [`DatasetError::CalibrationMissingKey`] or [`DatasetError::CalibrationValue`] naming the file
     /// and the key when it is not valid TOML, a key is missing, or a value is of the wrong type,
     /// NaN, infinite, zero or negative, or the principal point lies outside the image.
@@ -110,6 +116,7 @@ impl Calibration {
                 path: path.to_owned(),
                 message: e.to_string().trim_end().to_owned(),
             })?;
+        check_keys(text, path)?;
         let mut floats = [0.0f32; 5];
         for (slot, key) in floats.iter_mut().zip(FLOAT_KEYS) {
             *slot = float_key(&table, path, key)?;
@@ -388,7 +395,7 @@ mod tests {
     use super::*;
 
     const GOOD: &str = "fx = 585.0\nfy = 585\ncx = 320.0\ncy = 240.0\nwidth = 640\nheight = 480\n\
-                        depth_scale = 1000.0\nrig = \"kinect\" # other keys are ignored\n";
+                        depth_scale = 1000.0 # a comment\n";
 
     #[test]
     fn a_valid_file_parses() {
@@ -484,6 +491,68 @@ mod tests {
         // TUM's names are refused, not ignored.
         let err = Calibration::from_toml_str(&format!("{GOOD}d0 = 0.26\n"), path).unwrap_err();
         assert!(err.to_string().contains("TUM's name of k1"), "{err}");
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_with_their_line_and_the_nearest_key() {
+        let path = Path::new("x/calibration.toml");
+        let depth =
+            "[depth]\nfx = 585.0\nfy = 585\ncx = 320.0\ncy = 240.0\ntx = 0\nty = 0\ntz = 0\n";
+        let cases = [
+            // A misspelt distortion key would have left the distortion in the images.
+            (
+                format!("{GOOD}k_1 = 0.26\n"),
+                "x/calibration.toml:8: unknown key `k_1`; did you mean `k1`?",
+            ),
+            // A misspelt table would have left the depth unregistered.
+            (
+                format!("{GOOD}{}", depth.replace("[depth]", "[depht]")),
+                "x/calibration.toml:8: unknown key `depht`; did you mean `depth`?",
+            ),
+            (
+                format!("{GOOD}{depth}fxx = 1\n"),
+                "x/calibration.toml:16: unknown key `fxx` in the [depth] table; did you mean `fx`?",
+            ),
+            (
+                format!("{GOOD}depth_noise = 0.001\n"),
+                "x/calibration.toml:8: unknown key `depth_noise`; did you mean \
+                 `depth_noise_coeff_per_m`?",
+            ),
+            (
+                format!("FX = 525.0\n{GOOD}"),
+                "x/calibration.toml:1: unknown key `FX`; did you mean `fx`?",
+            ),
+            // A top-level key written after the [depth] line belongs to that table.
+            (
+                format!("{GOOD}{depth}k1 = 0.2\n"),
+                "x/calibration.toml:16: unknown key `k1` in the [depth] table; `k1` is a top-level \
+                 key: write it above the [depth] line (every key after a [table] line belongs to \
+                 that table)",
+            ),
+            (
+                format!("{GOOD}tx = 0.01\n"),
+                "x/calibration.toml:8: unknown key `tx`; `tx` is a key of the [depth] table: write \
+                 it below a [depth] line",
+            ),
+            (
+                format!("{GOOD}rig = \"kinect\"\n"),
+                "x/calibration.toml:8: unknown key `rig`; the keys here are fx, fy, cx, cy, width, \
+                 height, depth_scale, k1, k2, p1, p2, k3, depth_noise_coeff_per_m, depth",
+            ),
+            // The first in the file, not in key order.
+            (format!("zz = 1\n{GOOD}aa = 1\n"), "x/calibration.toml:1: unknown key `zz`; "),
+        ];
+        for (text, message) in cases {
+            let err = Calibration::from_toml_str(&text, path).unwrap_err();
+            assert!(matches!(err, DatasetError::CalibrationUnknownKey { .. }), "{text}: {err}");
+            assert!(err.to_string().starts_with(message), "{text}: {err}");
+        }
+        // Every key the format defines is accepted.
+        let all = format!(
+            "{GOOD}k1 = 0.1\nk2 = 0\np1 = 0\np2 = 0\nk3 = 0\n\
+             depth_noise_coeff_per_m = 0.002\n{depth}"
+        );
+        assert!(Calibration::from_toml_str(&all, path).is_ok());
     }
 
     #[test]

@@ -24,6 +24,37 @@ pub enum DatasetError {
         source: std::io::Error,
     },
 
+    /// The dataset folder does not exist.
+    #[error("dataset folder {} does not exist", dir.display())]
+    NoFolder {
+        /// The path given.
+        dir: PathBuf,
+    },
+
+    /// The dataset path is a file, not a folder.
+    #[error(
+        "{} is not a folder: a dataset is a TUM RGB-D folder (rgb.txt, depth.txt, \
+         calibration.toml)",
+        dir.display()
+    )]
+    NotAFolder {
+        /// The path given.
+        dir: PathBuf,
+    },
+
+    /// The dataset folder has no `rgb.txt` or no `depth.txt`.
+    #[error(
+        "{} has no {list}: not a TUM RGB-D folder (rgb.txt and depth.txt list the colour and \
+         depth images, one `timestamp path` per line)",
+        dir.display()
+    )]
+    NoList {
+        /// The folder.
+        dir: PathBuf,
+        /// The list it lacks: `rgb.txt` or `depth.txt`.
+        list: &'static str,
+    },
+
     /// A dataset folder has no `calibration.toml`, none was given, and its name names no TUM
     /// sensor.
     #[error(
@@ -100,6 +131,26 @@ pub enum DatasetError {
         path: PathBuf,
         /// The TOML parser's message (it names the line and column).
         message: String,
+    },
+
+    /// A calibration file holds a key it does not define (a misspelt key would otherwise turn
+    /// off what it sets without a word).
+    #[error(
+        "{}:{line}: unknown key `{key}`{}; {hint}",
+        path.display(),
+        table.map_or(String::new(), |t| format!(" in the [{t}] table"))
+    )]
+    CalibrationUnknownKey {
+        /// The calibration file.
+        path: PathBuf,
+        /// 1-based line of the key.
+        line: usize,
+        /// The key as written.
+        key: String,
+        /// The table it is in (`depth`), `None` at the top level.
+        table: Option<&'static str>,
+        /// What to write instead: the nearest valid key, or the valid keys.
+        hint: String,
     },
 
     /// A calibration key is missing.

@@ -17,16 +17,22 @@
 //! Policy for what real TUM sequences contain:
 //! - a listed image that is not on disk is skipped, not fatal: it is left out before association
 //!   (so it cannot take a partner from a present frame) and reported by [`Dataset::skipped`], which
-//!   the CLI prints as a counted warning; a dataset with no usable frame at all is an error;
-//! - colour and depth are associated as TUM's `associate.py` does (see `associate`); frames that
-//!   find no partner within [`DatasetOptions::max_dt_s`] are skipped and reported the same way;
+//!   `replay` prints as a counted warning (`replay --strict` refuses to run instead); a dataset
+//!   with no usable frame at all is an error;
+//! - colour and depth are associated as TUM's `associate.py` does (see `associate`); images that
+//!   find no partner within [`DatasetOptions::max_dt_s`] are skipped and reported the same way. A
+//!   frame is a colour image: [`Dataset::skipped_frames`] are the colour images skipped, and the
+//!   depth images left over are only noted (TUM's two streams run on clocks of their own, so a
+//!   few depth images without a colour image are normal);
 //! - each frame's time is its colour image's timestamp;
 //! - ground truth is parsed (by [`crate::trajectory::Trajectory::parse_tum`]) but not associated
 //!   per frame (evaluation associates whole trajectories).
 //!
-//! Everything else that is wrong (a malformed line, timestamps that do not increase, a bad
-//! calibration, an undecodable image, a depth image that is not 16-bit, a size that differs from
-//! the calibration) is a [`DatasetError`] naming the file and, for lists, the 1-based line.
+//! A path that is not a folder, or a folder without `rgb.txt` or `depth.txt`, is an error that
+//! says so before anything else is read. Everything else that is wrong (a malformed line,
+//! timestamps that do not increase, a bad calibration, an undecodable image, a depth image that is
+//! not 16-bit, a size that differs from the calibration) is a [`DatasetError`] naming the file
+//! and, for lists, the 1-based line.
 
 mod associate;
 pub mod calibrate_depth;
@@ -37,6 +43,7 @@ mod lists;
 mod reader;
 pub mod registration;
 pub mod selection;
+mod skipped;
 #[cfg(test)]
 mod tests;
 pub mod undistort;
@@ -52,6 +59,8 @@ pub use calibration::{Calibration, DepthCamera, Distortion};
 pub use error::DatasetError;
 pub use reader::DatasetReader;
 use selection::{FrameSelection, SelectionError};
+pub use skipped::{SkipReason, SkippedFrame, Stream};
+use skipped::{keep_present, nearest_missing, skip};
 use undistort::Undistorter;
 
 /// Ground-truth poses are the trajectory module's type (re-exported for convenience).
@@ -126,53 +135,14 @@ pub struct AssociatedFrame {
     pub depth_path: PathBuf,
 }
 
-/// Why a listed image is not replayed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum SkipReason {
-    /// The image file does not exist (or is not a regular file).
-    Missing,
-    /// No image of the other stream lies within the association limit (or the nearest ones were
-    /// taken by closer frames).
-    Unassociated,
-}
-
-/// A listed image that is not replayed, and why; `Display` gives a one-line warning.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SkippedFrame {
-    /// The list naming it (`.../rgb.txt` or `.../depth.txt`).
-    pub list: PathBuf,
-    /// 1-based line in that list.
-    pub line: usize,
-    /// Its timestamp, in seconds.
-    pub timestamp_s: f64,
-    /// The image path.
-    pub path: PathBuf,
-    /// Why it is skipped.
-    pub reason: SkipReason,
-}
-
-impl fmt::Display for SkippedFrame {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (list, line, path) = (self.list.display(), self.line, self.path.display());
-        match self.reason {
-            SkipReason::Missing => write!(f, "{list}:{line}: {path} does not exist; skipped"),
-            SkipReason::Unassociated => write!(
-                f,
-                "{list}:{line}: {path} (t = {} s) has no partner within the association limit; \
-                 skipped",
-                self.timestamp_s
-            ),
-        }
-    }
-}
-
 /// An opened TUM RGB-D folder: associated frame list, calibration and ground truth. Decodes
 /// nothing until asked.
 #[derive(Debug, Clone)]
 pub struct Dataset {
     dir: PathBuf,
     frames: Vec<AssociatedFrame>,
+    /// Data lines of `rgb.txt`: the frames the folder lists.
+    listed_frames: usize,
     skipped: Vec<SkippedFrame>,
     groundtruth: Option<Trajectory>,
     sensor: Calibration,
@@ -189,11 +159,14 @@ impl Dataset {
     /// not on disk, associates colour to depth and applies `skip_frames`, then `max_frames`.
     ///
     /// # Errors
-    /// [`DatasetError::Io`] for a missing or unreadable `rgb.txt`, `depth.txt` or calibration file
-    /// (an absent `groundtruth.txt` is fine), the list and calibration errors of the module doc,
+    /// [`DatasetError::NoFolder`] or [`DatasetError::NotAFolder`] when `dir` is not a folder,
+    /// [`DatasetError::NoList`] when it has no `rgb.txt` or `depth.txt`, [`DatasetError::Io`] for
+    /// an unreadable list or a missing or unreadable calibration file (an absent `groundtruth.txt`
+    /// is fine), the list and calibration errors of the module doc,
     /// [`DatasetError::ProfileSize`] when the calibrated size cannot be halved as the profile asks,
     /// and [`DatasetError::EmptyDataset`] when no frame is left.
     pub fn open(dir: &Path, opts: &DatasetOptions) -> Result<Self, DatasetError> {
+        check_folder(dir)?;
         let (sensor, calibration_origin) = open_calibration(dir, &opts.calibration)?;
         let levels = opts.profile.downsample_levels;
         let divisor = 1u32.checked_shl(u32::from(levels)).unwrap_or(0);
@@ -212,14 +185,24 @@ impl Dataset {
         let depth = lists::parse_image_list(&depth_list, &lists::read_text(&depth_list)?, dir)?;
         let mut groundtruth = read_groundtruth(&dir.join("groundtruth.txt"))?;
 
+        let listed_frames = rgb.len();
+        let max_dt_s = opts.max_dt_s;
         let mut skipped = Vec::new();
-        let rgb_present = keep_present(&rgb_list, rgb, &mut skipped);
-        let depth_present = keep_present(&depth_list, depth, &mut skipped);
-        let (mut frames, unpaired) = pair(&rgb_present, &depth_present, opts.max_dt_s);
-        for (list, entry) in unpaired {
-            let list = if list == Stream::Rgb { &rgb_list } else { &depth_list };
-            skipped.push(skip(list, entry, SkipReason::Unassociated));
-        }
+        let rgb_present = keep_present((&rgb_list, Stream::Rgb), rgb, max_dt_s, &mut skipped);
+        let depth_present =
+            keep_present((&depth_list, Stream::Depth), depth, max_dt_s, &mut skipped);
+        let (mut frames, unpaired) = pair(&rgb_present, &depth_present, max_dt_s);
+        let unpaired: Vec<SkippedFrame> = unpaired
+            .into_iter()
+            .map(|(stream, entry)| {
+                let list = if stream == Stream::Rgb { &rgb_list } else { &depth_list };
+                let missing_partner =
+                    nearest_missing(&skipped, stream.other(), entry.timestamp_s, max_dt_s);
+                let skipped = skip((list, stream), entry, SkipReason::Unassociated, max_dt_s);
+                SkippedFrame { missing_partner, ..skipped }
+            })
+            .collect();
+        skipped.extend(unpaired);
         skipped.sort_by(|a, b| a.list.cmp(&b.list).then(a.line.cmp(&b.line)));
         let associated = frames.len();
         if let Some(selection) = &opts.frames {
@@ -256,6 +239,7 @@ impl Dataset {
         Ok(Self {
             dir: dir.to_owned(),
             frames,
+            listed_frames,
             skipped,
             groundtruth,
             sensor,
@@ -326,10 +310,22 @@ impl Dataset {
         self.depth_level
     }
 
-    /// Listed images that are not replayed (missing on disk or unassociated), sorted by list and
-    /// line. `Display` of each is a one-line warning.
+    /// Listed images that are not replayed (missing on disk or unassociated), colour and depth,
+    /// sorted by list and line. `Display` of each is a one-line warning.
     pub fn skipped(&self) -> &[SkippedFrame] {
         &self.skipped
+    }
+
+    /// The frames `rgb.txt` lists (its data lines), played or not.
+    pub fn listed_frames(&self) -> usize {
+        self.listed_frames
+    }
+
+    /// The frames skipped: the colour images of [`Dataset::skipped`], by line. With the frames
+    /// associated they make up [`Dataset::listed_frames`]; frames left out by
+    /// [`DatasetOptions::skip_frames`], `max_frames` or `frames` are not skipped ones.
+    pub fn skipped_frames(&self) -> impl Iterator<Item = &SkippedFrame> {
+        self.skipped.iter().filter(|s| s.stream == Stream::Rgb)
     }
 
     /// Decodes frame `index`: colour to 8-bit gray, depth as raw 16-bit, both checked against the
@@ -425,8 +421,7 @@ fn open_calibration(
     Ok(match source {
         CalibrationSource::File => {
             let path = dir.join("calibration.toml");
-            // A folder that is not there is an I/O error of the file read first, as before.
-            if dir.is_dir() && !path.exists() {
+            if !path.exists() {
                 let Some(name) = Calibration::preset_for_folder(dir) else {
                     return Err(DatasetError::NoCalibration { dir: dir.to_owned() });
                 };
@@ -483,32 +478,30 @@ fn read_groundtruth(path: &Path) -> Result<Option<Trajectory>, DatasetError> {
     }
 }
 
-/// Which list an entry came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stream {
-    Rgb,
-    Depth,
-}
+/// The lists a dataset folder must hold.
+const LISTS: [&str; 2] = ["rgb.txt", "depth.txt"];
 
-fn skip(list: &Path, entry: &ListEntry, reason: SkipReason) -> SkippedFrame {
-    SkippedFrame {
-        list: list.to_owned(),
-        line: entry.line,
-        timestamp_s: entry.timestamp_s,
-        path: entry.path.clone(),
-        reason,
+/// Checks that `dir` is a folder holding both lists, so that a wrong path is said as such
+/// rather than as the first file that cannot be read in it.
+fn check_folder(dir: &Path) -> Result<(), DatasetError> {
+    match std::fs::metadata(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(DatasetError::NoFolder { dir: dir.to_owned() });
+        }
+        Err(source) => return Err(DatasetError::Io { path: dir.to_owned(), source }),
+        Ok(m) if !m.is_dir() => return Err(DatasetError::NotAFolder { dir: dir.to_owned() }),
+        Ok(_) => {}
     }
-}
-
-/// The entries whose image is a file; the others go to `skipped`.
-fn keep_present(
-    list: &Path,
-    entries: Vec<ListEntry>,
-    skipped: &mut Vec<SkippedFrame>,
-) -> Vec<ListEntry> {
-    let (present, missing): (Vec<_>, Vec<_>) = entries.into_iter().partition(|e| e.path.is_file());
-    skipped.extend(missing.iter().map(|e| skip(list, e, SkipReason::Missing)));
-    present
+    for list in LISTS {
+        // Only a list that is not there at all is said so; an unreadable one is an I/O error
+        // when it is read.
+        if let Err(e) = std::fs::metadata(dir.join(list))
+            && e.kind() == std::io::ErrorKind::NotFound
+        {
+            return Err(DatasetError::NoList { dir: dir.to_owned(), list });
+        }
+    }
+    Ok(())
 }
 
 /// Associates the two streams; returns the frames and the entries left without a partner.

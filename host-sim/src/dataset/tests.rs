@@ -97,6 +97,19 @@ fn open_associates_skips_missing_and_reads_groundtruth() {
     );
     let msg = ds.skipped()[0].to_string();
     assert!(msg.contains("depth.txt:4: ") && msg.contains("depth/1.png does not exist"), "{msg}");
+    // The frames skipped are the colour images: colour 1 lost its depth image, which is missing,
+    // and colour 5 has none; with the four played they are the six listed.
+    let frames: Vec<_> = ds.skipped_frames().collect();
+    assert_eq!((ds.listed_frames(), frames.len()), (6, 2));
+    assert_eq!(
+        frames[0].why(),
+        format!(
+            "no depth image within 0.02 s ({} is listed but does not exist)",
+            tmp.path().join("depth/1.png").display()
+        )
+    );
+    assert_eq!(frames[1].why(), "no depth image within 0.02 s");
+    assert!(frames[1].to_string().contains("rgb.txt:8: "), "{}", frames[1]);
     assert_eq!(ds.groundtruth().map(<[_]>::len), Some(20));
     assert_eq!(ds.calibration(), ds.sensor_calibration());
 }
@@ -299,4 +312,48 @@ fn a_folder_without_calibration_takes_the_tum_preset_its_name_gives() {
         Calibration::preset_for_folder(Path::new("rgbd_dataset_Freiburg2_xyz")),
         Some("tum2")
     );
+}
+
+/// Every calibration file the product ships (`calibration/`, the shared data set's) or writes
+/// (`demo --write-dataset`, `calibrate-depth --out`, tested with its writer) is read without an
+/// unknown key.
+#[test]
+fn every_calibration_file_shipped_or_written_is_accepted() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut files: Vec<_> = fs::read_dir(root.join("calibration"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    assert!(!files.is_empty());
+    files.push(root.join("../shared/datasets/7scenes-redkitchen-1000/calibration.toml"));
+    let tmp = tempfile::tempdir().unwrap();
+    let options =
+        crate::synth::SynthOptions { frames: 1, width: 32, height: 24, ..Default::default() };
+    let sequence = crate::synth::SyntheticSequence::new(options).unwrap();
+    crate::synth::write_tum_folder(&sequence, tmp.path(), "test", 2e-4).unwrap();
+    files.push(tmp.path().join("calibration.toml"));
+    for file in files {
+        if let Err(e) = Calibration::load(&file) {
+            panic!("{}: {e}", file.display());
+        }
+    }
+}
+
+#[test]
+fn a_path_that_is_no_dataset_folder_is_said_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("nowhere");
+    let err = Dataset::open(&missing, &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::NoFolder { .. }), "{err}");
+    assert_eq!(err.to_string(), format!("dataset folder {} does not exist", missing.display()));
+    write(tmp.path(), "file", "");
+    let err = Dataset::open(&tmp.path().join("file"), &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::NotAFolder { .. }), "{err}");
+    // Said before the calibration, which is missing too.
+    let err = Dataset::open(tmp.path(), &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::NoList { list: "rgb.txt", .. }), "{err}");
+    write(tmp.path(), "rgb.txt", "");
+    let err = Dataset::open(tmp.path(), &opts(VGA)).unwrap_err();
+    assert!(matches!(err, DatasetError::NoList { list: "depth.txt", .. }), "{err}");
 }

@@ -50,8 +50,8 @@ fn a_map_reads_back_and_its_figures_are_the_records() {
     assert_eq!(e.size(), [2.0, 0.0, 0.0]);
     let text = s.to_string();
     for line in [
-        "format: version 1, 16-byte header, records of 1024 bytes",
-        "file: 3088 bytes",
+        "format: version 2, 20-byte header, records of 1024 bytes, 48 points, a 16 x 12 key",
+        "file: 3092 bytes",
         "keyframes: 3",
         "verification points: 55 (per keyframe: min 2, median 5, max 48)",
         "segments: not stored in this format",
@@ -80,7 +80,10 @@ fn empty() -> MapFile {
 fn an_empty_map_has_no_figures_and_an_empty_cloud() {
     let map = empty();
     let s = map.summary();
-    assert_eq!((s.keyframes, s.file_bytes, s.points, s.timestamps_s), (0, 16, None, None));
+    assert_eq!(
+        (s.keyframes, s.file_bytes, s.points, s.timestamps_s),
+        (0, MAP_HEADER_BYTES, None, None)
+    );
     assert!(s.to_string().contains("keyframes: 0\nverification points: 0\n"), "{s}");
     let mut ply = Vec::new();
     let counts = map.write_ply(&mut ply).unwrap();
@@ -120,11 +123,11 @@ fn a_damaged_or_foreign_file_says_what_is_wrong() {
     let good = encode_map_file(&three_records());
     let fault = |bytes: &[u8]| MapFile::from_bytes(bytes).unwrap_err().to_string();
 
-    assert_eq!(fault(&good[..10]), "truncated: 10 bytes where the header says 16");
-    assert_eq!(fault(&good[..2000]), "truncated: 2000 bytes where the header says 3088");
+    assert_eq!(fault(&good[..10]), "truncated: 10 bytes where the header says 20");
+    assert_eq!(fault(&good[..2000]), "truncated: 2000 bytes where the header says 3092");
     let mut longer = good.clone();
     longer.push(0);
-    assert_eq!(fault(&longer), "3089 bytes where the header says 3088: trailing bytes");
+    assert_eq!(fault(&longer), "3093 bytes where the header says 3092: trailing bytes");
     assert_eq!(
         fault(b"PK\x03\x04 a zip file, not a map"),
         "not a ferroslam map file (no FSMP magic)"
@@ -171,7 +174,7 @@ fn a_file_is_named_in_its_error() {
     let e = MapFile::read(&file).unwrap_err();
     assert_eq!(
         e.to_string(),
-        format!("map {}: truncated: 3087 bytes where the header says 3088", file.display())
+        format!("map {}: truncated: 3091 bytes where the header says 3092", file.display())
     );
     std::fs::write(&file, &good).unwrap();
     assert_eq!(MapFile::read(&file).unwrap().records.len(), 3);

@@ -123,6 +123,8 @@ impl<P: ProfileTypes> Stepper<'_, P> {
     /// The back-end step alone.
     fn step(&mut self) -> Result<BackendStatus> {
         let status = self.slam.step_backend(self.cam, self.quota).map_err(backend_error)?;
+        // The place memory's pending store write, after the step as on the board.
+        self.places.flush();
         self.record.update(self.slam);
         Ok(status)
     }
@@ -315,6 +317,13 @@ impl Places for RunPlaces {
         match self {
             Self::On(m) => m.remember(map, kf),
             Self::Off(n) => n.remember(map, kf),
+        }
+    }
+
+    fn flush(&mut self) {
+        match self {
+            Self::On(m) => m.flush(),
+            Self::Off(n) => n.flush(),
         }
     }
 
