@@ -47,14 +47,17 @@ pub struct StampedPose {
 
 impl StampedPose {
     /// A pose from a timestamp (s), a camera centre in the world (m) and a camera-to-world quaternion
-    /// given as `(qx, qy, qz, qw)`. The quaternion is normalized; `None` if it is (near) zero or not
-    /// finite, or if any value is not finite.
+    /// given as `(qx, qy, qz, qw)`. The quaternion is normalized (however large its components);
+    /// `None` if it is (near) zero, or if any value is not finite.
     pub fn from_tum_values(timestamp_s: f64, t_m: [f64; 3], q_xyzw: [f64; 4]) -> Option<Self> {
         if !timestamp_s.is_finite() || t_m.iter().chain(q_xyzw.iter()).any(|v| !v.is_finite()) {
             return None;
         }
         let [qx, qy, qz, qw] = q_xyzw;
         let q = Quaternion::new(qw, qx, qy, qz);
+        // Components near f64's limit overflow the norm, which would normalize the quaternion to
+        // zero: scale those down by the largest first (any other is normalized as it is).
+        let q = if q.norm().is_finite() { q } else { q / q.coords.amax() };
         if q.norm() < MIN_QUATERNION_NORM {
             return None;
         }
@@ -291,6 +294,18 @@ mod tests {
         let angle = traj.poses[1].t_wc.rotation.angle();
         assert!((angle - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert_eq!(traj.timestamps_s(), vec![1.0, 2.5]);
+    }
+
+    #[test]
+    fn a_quaternion_whose_norm_overflows_is_normalized_not_zeroed() {
+        // Found by `cargo xtask fuzz --target trajectory`: `qw = 0.991e308` made the norm
+        // infinite and the "normalized" rotation all zeros.
+        let traj = parse("0.2 1 2 3 0 0 0 0.991e308\n0.3 0 0 0 1e300 0 0 1e300\n").unwrap();
+        let q = traj.poses[0].t_wc.rotation;
+        assert_eq!(q.coords, nalgebra::Vector4::new(0.0, 0.0, 0.0, 1.0), "{q:?}");
+        let angle = traj.poses[1].t_wc.rotation.angle();
+        assert!((angle - std::f64::consts::FRAC_PI_2).abs() < 1e-12, "{angle}");
+        assert!((traj.poses[1].t_wc.rotation.norm() - 1.0).abs() < 1e-15);
     }
 
     #[test]

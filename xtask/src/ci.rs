@@ -68,6 +68,7 @@ pub fn run_all() -> Result<()> {
         cargo(&["test", "--workspace", "--exclude", "ferroslam-firmware"])?;
         cargo(&["test", "-p", "ferroslam-firmware", "--lib"])
     })?;
+    step("fuzz targets, a fixed number of inputs each", fuzz)?;
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
@@ -85,6 +86,19 @@ pub fn run_all() -> Result<()> {
     })?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// Inputs per fuzz target in CI (the `frames` target gets this over
+/// `fuzz::FRAMES_ITERATION_DIVISOR`): the same inputs on every run, chosen so that all targets
+/// together take about 70 s on the 2-core CI machine (docs/decisions.md, "Fuzzing on the stable
+/// toolchain").
+const FUZZ_ITERATIONS: u64 = 350_000;
+
+/// Every fuzz target for [`FUZZ_ITERATIONS`] inputs (`cargo xtask fuzz --iterations`), in
+/// process: a panic or a broken property fails the step, its input saved under
+/// `target/fuzz/failures/`.
+fn fuzz() -> Result<()> {
+    crate::fuzz::run(&["--iterations".to_owned(), FUZZ_ITERATIONS.to_string()])
 }
 
 /// Builds core and the firmware for the Cortex-M target and proves no binary links an allocator:

@@ -29,6 +29,11 @@
 //!   tuning, with SLAM better than odometry (default: every recording with ground truth in
 //!   `../shared/datasets` other than 7-Scenes; `ci` runs it, and says when there is none); see
 //!   `heldout.rs`.
+//! - `fuzz [--seconds N | --iterations N] [--target NAME[,NAME...]] [--seed S]`, `fuzz --target
+//!   NAME --replay FILE`, `fuzz --write-corpus`: every parser and decoder (map file, flash mount,
+//!   wire, calibration, lists, trajectory, image) and the SLAM pipeline on adversarial frames,
+//!   under a deterministic mutation fuzzer (seed corpora in `fuzz/corpus/`); `ci` runs every
+//!   target for a fixed number of inputs; see `fuzz.rs`.
 //!
 //! The depth-to-colour calibration estimator that `calibration/7scenes-kinect-v1.toml` came from
 //! is a host-sim command, `ferroslam-sim calibrate-depth DATASET --out FILE` (it was `cargo xtask
@@ -36,12 +41,13 @@
 //!
 //! Modules, top down (no module imports one above it): `main` parses the subcommand; `ci` runs
 //! the pipeline and nothing imports it; each other subcommand has its module (`budgets`,
-//! `profile`, `heldout`, `spread`, `bench`, and `replay`, the firmware replay that `budgets`,
-//! `profile` and `ci` run too), over the pieces they share: `budget_tables` and `budget_doc`
-//! (`memory-budget.md`), `budget_figures` (what `budgets` measures and judges), `sim`
-//! (host-sim's replay in process, held to an accuracy bar), `cost` (a firmware run's per-frame costs), `firmware`
-//! (building it, running QEMU), `cargo` (running cargo), `stats`, and `paths` (the workspace
-//! root, the 7-Scenes recording and its calibration, the output folders) at the bottom.
+//! `profile`, `heldout`, `spread`, `bench`, `fuzz`, and `replay`, the firmware replay that
+//! `budgets`, `profile` and `ci` run too), over the pieces they share: `budget_tables` and
+//! `budget_doc` (`memory-budget.md`), `budget_figures` (what `budgets` measures and judges), `sim`
+//! (host-sim's replay in process, held to an accuracy bar), `cost` (a firmware run's per-frame
+//! costs), `firmware` (building it, running QEMU), `cargo` (running cargo), `stats`, and `paths`
+//! (the workspace root, the 7-Scenes recording and its calibration, the output folders) at the
+//! bottom.
 
 mod bench;
 mod budget_doc;
@@ -53,6 +59,7 @@ mod ci;
 mod cost;
 mod fast_demo;
 mod firmware;
+mod fuzz;
 mod heldout;
 mod paths;
 mod profile;
@@ -77,6 +84,7 @@ fn main() -> ExitCode {
         Some("profile-firmware") => profile::run(&args[1..]),
         Some("spread") => spread::run(&args[1..]),
         Some("heldout") => heldout::run(&args[1..]),
+        Some("fuzz") => fuzz::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
@@ -86,7 +94,9 @@ fn main() -> ExitCode {
                  profile-firmware [--dataset DIR] [--frames N] [--top K] [--out DIR] | \
                  bench-frontend [--dataset DIR] [--frames N] [--json FILE] [--max-median INSN] | \
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
-                 [--json FILE] [-- REPLAY ARGS] | heldout [--dataset DIR]...> \
+                 [--json FILE] [-- REPLAY ARGS] | heldout [--dataset DIR]... | \
+                 fuzz [--seconds N | --iterations N] [--target NAME] [--seed S] [--replay FILE] \
+                 [--write-corpus]> \
                  (the depth calibration estimator is `ferroslam-sim calibrate-depth`)"
             );
             return ExitCode::from(2);

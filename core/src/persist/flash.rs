@@ -163,7 +163,8 @@ impl<F: NorFlash> FlashStore<F> {
     }
 
     /// The store on `flash` as the last commit left it: the valid table of the highest
-    /// generation, or an empty store when there is none (a blank or foreign region; a region
+    /// generation (in serial-number order, so that generations may wrap), or an empty store when
+    /// there is none (a blank or foreign region; a region
     /// too small for a table and a record gives a store of no slots). Cost: every
     /// table unit read once (4 KiB); no record is read.
     ///
@@ -183,8 +184,9 @@ impl<F: NorFlash> FlashStore<F> {
         s.units = units.min(MAX_RECORD_UNITS) as u16;
         let mut best: Option<(u32, u8)> = None;
         for t in 0..TABLE_UNITS as u8 {
+            // Newer in serial-number order: the generation after u32::MAX is 0.
             if let Some(generation) = s.read_table(t, false)?
-                && best.is_none_or(|(g, _)| generation > g)
+                && best.is_none_or(|(g, _)| (generation.wrapping_sub(g) as i32) > 0)
             {
                 best = Some((generation, t));
             }

@@ -101,7 +101,7 @@ impl MapHeader {
     ///
     /// # Errors
     /// [`MapFileError::Truncated`], [`MapFileError::NotAMap`], [`MapFileError::Version`] or
-    /// [`MapFileError::Layout`]; the magic and the version are checked first, so a file of
+    /// [`MapFileError::Layout`] or [`MapFileError::Reserved`]; the magic and the version are checked first, so a file of
     /// another version is named as such even when shorter than this version's header.
     pub fn decode(bytes: &[u8]) -> Result<Self, MapFileError> {
         let byte = |at: usize| bytes.get(at).copied().unwrap_or(0);
@@ -123,6 +123,9 @@ impl MapHeader {
         };
         if layout != MAP_LAYOUT {
             return Err(MapFileError::Layout(layout));
+        }
+        if byte(10) != 0 || byte(11) != 0 {
+            return Err(MapFileError::Reserved([byte(10), byte(11)]));
         }
         Ok(Self { records: word(12), checksum: word(16) })
     }
@@ -200,6 +203,8 @@ pub enum MapFileError {
     Version(u8),
     /// Records of another layout: a build with other capacities wrote it (its layout).
     Layout(RecordLayout),
+    /// The header's reserved bytes (10 and 11) are not zero: not a file this build wrote.
+    Reserved([u8; 2]),
     /// The records' checksum does not match the header's: bytes changed since it was written.
     Checksum {
         /// The header's.
@@ -234,6 +239,10 @@ impl fmt::Display for MapFileError {
             Self::Version(v) => {
                 write!(f, "map format version {v}; this build reads version {MAP_VERSION}")
             }
+            Self::Reserved(b) => write!(
+                f,
+                "reserved header bytes {b:?} are not zero: not a map file this build wrote"
+            ),
             Self::Layout(l) => write!(
                 f,
                 "written by a build with other capacities: {l}; this build's are {MAP_LAYOUT}"

@@ -31,6 +31,9 @@ fn a_header_round_trips_and_a_wrong_one_says_what_is_wrong() {
     other[8..10].copy_from_slice(&512u16.to_le_bytes());
     let layout = RecordLayout { record_bytes: 512, points: 32, key: [16, 12] };
     assert_eq!(MapHeader::decode(&other), Err(MapFileError::Layout(layout)));
+    let mut other = bytes;
+    other[10] = 0x15;
+    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Reserved([0x15, 0])));
     assert_eq!(
         MapFileError::Layout(layout).to_string(),
         "written by a build with other capacities: records of 512 bytes, 32 points, a 16 x 12 \

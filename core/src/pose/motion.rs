@@ -42,8 +42,13 @@ pub fn predict_constant_velocity(
     if ratio == 1.0 {
         return Ok(delta * t_cw_last);
     }
-    // Twists in f32 (the pose precision); the ratio is rounded once.
-    let scaled = se3_exp(&(se3_log(&delta) * (ratio as f32)));
+    // Twists in f32 (the pose precision); the ratio is rounded once. A gap too long for an
+    // f32 ratio (over about 3.4e38 frame intervals) extrapolates nothing: the last pose.
+    let ratio = ratio as f32;
+    if !ratio.is_finite() {
+        return Ok(*t_cw_last);
+    }
+    let scaled = se3_exp(&(se3_log(&delta) * ratio));
     Ok(scaled * t_cw_last)
 }
 
@@ -129,6 +134,16 @@ mod tests {
     fn max_diff(a: &Pose, b: &Pose) -> (f32, f32) {
         let dt = (a.translation.vector - b.translation.vector).amax();
         (dt, a.rotation.angle_to(&b.rotation))
+    }
+
+    #[test]
+    fn a_gap_beyond_an_f32_ratio_predicts_the_last_pose() {
+        // Frames at 30 Hz, then one at 1e300 s (found by `cargo xtask fuzz`): the ratio of
+        // intervals is beyond f32, and the prediction is the last pose, finite.
+        let delta = se3_exp(&Vector6::new(0.01, 0.0, 0.0, 0.0, 0.01, 0.0));
+        let (p0, p1) = (start(), delta * start());
+        let predicted = predict_constant_velocity(&p0, 0.0, &p1, 1.0 / 30.0, 1e300).unwrap();
+        assert_eq!(predicted, p1);
     }
 
     #[test]

@@ -100,7 +100,8 @@ impl Calibration {
     /// [`DatasetError::CalibrationSyntax`],
     /// [`DatasetError::CalibrationMissingKey`] or [`DatasetError::CalibrationValue`] naming the file
     /// and the key when it is not valid TOML, a key is missing, or a value is of the wrong type,
-    /// NaN, infinite, zero or negative, or the principal point lies outside the image.
+    /// NaN, infinite, zero or negative, an image side is above 8192 pixels, or the principal
+    /// point lies outside the image.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
         Self::from_toml_str(&read_text(path)?, path)
@@ -198,7 +199,8 @@ impl Calibration {
         }
     }
 
-    /// Checks every value: finite and positive, principal point inside the image, size non-zero.
+    /// Checks every value: finite and positive, principal point inside the image, each side of
+    /// the image between 1 and 8192 pixels.
     ///
     /// # Errors
     /// [`DatasetError::CalibrationValue`] naming `origin` (the file the values came from) and the
@@ -239,6 +241,9 @@ impl Calibration {
             if v == 0 {
                 return bad(key, v.to_string(), "must be positive");
             }
+            if v > MAX_IMAGE_SIDE_PX {
+                return bad(key, v.to_string(), "must be at most 8192 pixels");
+            }
         }
         inside(("cx", "cy"), self.cx, self.cy)?;
         if let Some(d) = &self.depth {
@@ -272,6 +277,13 @@ impl Calibration {
         c
     }
 }
+
+/// The largest image side taken as real, pixels: RGB-D sensors deliver VGA to 4K, so a larger
+/// value is a typing mistake, and the loader's tables of one entry a pixel (the undistortion map,
+/// 16 bytes each) would not fit in memory: a width and height of 2^32 - 2 with a distortion made
+/// `Undistorter::new` panic (capacity overflow; found by `cargo xtask fuzz --target
+/// calibration`), 65,536 abort allocating 64 GiB.
+const MAX_IMAGE_SIDE_PX: u32 = 8192;
 
 /// The intrinsic keys of the `[depth]` table, as errors name them.
 const DEPTH_KEYS: [&str; 4] = ["depth.fx", "depth.fy", "depth.cx", "depth.cy"];
@@ -421,6 +433,9 @@ mod tests {
             ("fx = 585.0", "fx = \"585\"", "fx"),
             ("cx = 320.0", "cx = 700.0", "cx"),
             ("fx = 585.0", "fx = 1e300", "fx"),
+            ("width = 640", "width = 8193", "width"),
+            ("width = 640\nheight = 480", "width = 4294967294\nheight = 4294967294", "width"),
+            ("height = 480", "height = 65536", "height"),
         ];
         for (from, to, key) in cases {
             let text = GOOD.replace(from, to);

@@ -6,7 +6,12 @@
 //! conversion. Alpha is dropped (not composited). 16-bit samples are reduced to 8 bits by
 //! `(v * 255 + 32767) / 65535` (rounding to nearest) after the luma sum. The file format is found
 //! from the content, not the extension.
+//!
+//! The same decoding runs on a file (`decode_gray`, `decode_depth`: what the dataset loader
+//! calls) or on a file's bytes already in memory ([`gray_from_bytes`], [`depth_from_bytes`]: what
+//! `cargo xtask fuzz` feeds mutated images to).
 
+use std::io::{BufRead, Cursor, Seek};
 use std::path::Path;
 
 use image::{DynamicImage, ImageFormat, ImageReader};
@@ -16,7 +21,17 @@ use super::DatasetError;
 /// Opens and decodes an image, recognising its format from its content.
 fn decode(path: &Path) -> Result<(DynamicImage, Option<ImageFormat>), DatasetError> {
     let io = |source| DatasetError::Io { path: path.to_owned(), source };
-    let reader = ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)?;
+    decode_from(ImageReader::open(path).map_err(io)?, path)
+}
+
+/// Decodes the image `reader` reads, recognising its format from its content; `path` names it in
+/// errors.
+fn decode_from<R: BufRead + Seek>(
+    reader: ImageReader<R>,
+    path: &Path,
+) -> Result<(DynamicImage, Option<ImageFormat>), DatasetError> {
+    let io = |source| DatasetError::Io { path: path.to_owned(), source };
+    let reader = reader.with_guessed_format().map_err(io)?;
     let format = reader.format();
     let image =
         reader.decode().map_err(|source| DatasetError::Decode { path: path.to_owned(), source })?;
@@ -87,6 +102,31 @@ fn rgb_to_gray<T: Copy + Into<u32>>(s: &[T], step: usize, f: impl Fn(u32) -> u8)
 /// [`DatasetError::ColorFormat`], each naming `path`.
 pub(crate) fn decode_gray(path: &Path, expected: (u32, u32)) -> Result<Vec<u8>, DatasetError> {
     let (image, format) = decode(path)?;
+    to_gray(image, format, path, expected)
+}
+
+/// Decodes an image file's bytes `bytes` to 8-bit gray as the dataset loader decodes a colour
+/// image file, checking its size against `expected` (pixels); `path` only names it in errors.
+///
+/// # Errors
+/// As the loader's: [`DatasetError::Decode`], [`DatasetError::ImageSize`] or
+/// [`DatasetError::ColorFormat`].
+pub fn gray_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    expected: (u32, u32),
+) -> Result<Vec<u8>, DatasetError> {
+    let (image, format) = decode_from(ImageReader::new(Cursor::new(bytes)), path)?;
+    to_gray(image, format, path, expected)
+}
+
+/// `image` (in container `format`, from `path`) as 8-bit gray, checked to be `expected` pixels.
+fn to_gray(
+    image: DynamicImage,
+    format: Option<ImageFormat>,
+    path: &Path,
+    expected: (u32, u32),
+) -> Result<Vec<u8>, DatasetError> {
     check_size(path, (image.width(), image.height()), expected)?;
     let u8_id = |v: u32| v as u8;
     let gray = match image {
@@ -116,6 +156,33 @@ pub(crate) fn decode_gray(path: &Path, expected: (u32, u32)) -> Result<Vec<u8>, 
 /// `path`.
 pub(crate) fn decode_depth(path: &Path, expected: (u32, u32)) -> Result<Vec<u16>, DatasetError> {
     let (image, format) = decode(path)?;
+    to_depth(image, format, path, expected)
+}
+
+/// Decodes an image file's bytes `bytes` as the dataset loader decodes a depth image file (a
+/// 16-bit gray PNG), checking its size against `expected` (pixels); `path` only names it in
+/// errors.
+///
+/// # Errors
+/// As the loader's: [`DatasetError::Decode`], [`DatasetError::DepthFormat`] or
+/// [`DatasetError::ImageSize`].
+pub fn depth_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    expected: (u32, u32),
+) -> Result<Vec<u16>, DatasetError> {
+    let (image, format) = decode_from(ImageReader::new(Cursor::new(bytes)), path)?;
+    to_depth(image, format, path, expected)
+}
+
+/// `image` (in container `format`, from `path`) as 16-bit depth samples, if it is a 16-bit gray
+/// PNG of `expected` pixels.
+fn to_depth(
+    image: DynamicImage,
+    format: Option<ImageFormat>,
+    path: &Path,
+    expected: (u32, u32),
+) -> Result<Vec<u16>, DatasetError> {
     match image {
         DynamicImage::ImageLuma16(b) if format == Some(ImageFormat::Png) => {
             check_size(path, b.dimensions(), expected)?;

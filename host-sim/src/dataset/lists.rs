@@ -15,7 +15,7 @@ const IMAGE_LINE: &str = "timestamp path";
 
 /// One data line of `rgb.txt` or `depth.txt`.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct ListEntry {
+pub struct ListEntry {
     /// Seconds on the stream's clock.
     pub timestamp_s: f64,
     /// The image path joined to the dataset folder (an absolute path in the list stays as is).
@@ -107,12 +107,14 @@ impl Monotonic {
     }
 }
 
-/// Parses the text of an image list read from `path`; image paths are joined to `dir`.
+/// Parses the text of an image list read from `path` (only named in errors); image paths are
+/// joined to `dir`. What `Dataset::open` does with `rgb.txt` and `depth.txt` (public for
+/// `cargo xtask fuzz`).
 ///
 /// # Errors
 /// [`DatasetError::FieldCount`], [`DatasetError::BadNumber`] or
 /// [`DatasetError::TimestampNotIncreasing`], naming `path` and the line.
-pub(crate) fn parse_image_list(
+pub fn parse_image_list(
     path: &Path,
     text: &str,
     dir: &Path,

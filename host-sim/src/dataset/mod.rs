@@ -56,7 +56,9 @@ use ferroslam_core::config::{ASSOCIATION_MAX_DT_S, QVGA, Resolution};
 pub use crate::frame::OwnedFrame;
 use crate::frame::halve_frame;
 pub use calibration::{Calibration, DepthCamera, Distortion};
+pub use decode::{depth_from_bytes, gray_from_bytes};
 pub use error::DatasetError;
+pub use lists::{ListEntry, parse_image_list};
 pub use reader::DatasetReader;
 use selection::{FrameSelection, SelectionError};
 pub use skipped::{SkipReason, SkippedFrame, Stream};
@@ -66,7 +68,6 @@ use undistort::Undistorter;
 /// Ground-truth poses are the trajectory module's type (re-exported for convenience).
 pub use crate::trajectory::StampedPose;
 use crate::trajectory::Trajectory;
-use lists::ListEntry;
 
 /// Where the camera calibration comes from.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
