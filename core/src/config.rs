@@ -304,6 +304,11 @@ impl Default for SensorModel {
 /// this value: docs/decisions.md, "Back-end work quota per frame".
 pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 
+/// Back-end steps a run allows after its last frame to finish the work under way before its map
+/// is read or saved (`Slam::drain_backend`): the host replay's and the board's, so that both
+/// save the same map.
+pub const DEFAULT_DRAIN_STEPS: u32 = 10_000;
+
 /// Largest timestamp difference when associating colour, depth and ground truth, in seconds
 /// (the TUM benchmark's and evo's 0.02 s).
 pub const ASSOCIATION_MAX_DT_S: f64 = 0.02;

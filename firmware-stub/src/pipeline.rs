@@ -8,7 +8,7 @@
 
 use ferroslam_core::frame::{FrameSource, RgbdFrame, TelemetrySink};
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, MapAccess, QvgaSlam};
+use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, DEFAULT_DRAIN_STEPS, MapAccess, QvgaSlam};
 use ferroslam_core::tracking::{FrontendError, Places};
 use ferroslam_core::wire::{
     CostMessage, FaultCode, FaultMessage, Message, PoseMessage, StatusMessage, TickUnit,
@@ -16,9 +16,6 @@ use ferroslam_core::wire::{
 
 /// Back-end work units run after every frame (the host replay's default quota).
 pub const BACKEND_QUOTA: u32 = DEFAULT_BACKEND_QUOTA;
-
-/// Back-end steps allowed to finish the work under way before a save (the host replay's).
-pub const DRAIN_STEPS: u32 = 10_000;
 
 /// The core's processing of one frame, with the frame counter and fault count of the board.
 #[derive(Debug)]
@@ -83,12 +80,12 @@ impl Pipeline {
         places.flush();
     }
 
-    /// Finishes the back end's work under way ([`DRAIN_STEPS`] steps of [`BACKEND_QUOTA`] at
+    /// Finishes the back end's work under way ([`DEFAULT_DRAIN_STEPS`] steps of [`BACKEND_QUOTA`] at
     /// most, as the host replay does after its last frame), then hands every keyframe of the
     /// active map to `places` to be remembered, oldest first (they stay in the map): a save's
     /// first half, before the place memory's commit. A back-end error counts as a fault.
     pub fn remember_map_in(&mut self, cam: &PinholeCamera, places: &mut impl Places) {
-        if self.slam.drain_backend(cam, BACKEND_QUOTA, DRAIN_STEPS).is_err() {
+        if self.slam.drain_backend(cam, BACKEND_QUOTA, DEFAULT_DRAIN_STEPS).is_err() {
             self.note_fault();
         }
         self.slam.map().remember_all_in(places);

@@ -190,13 +190,13 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         self.len = self.store.held().min(self.store.capacity()).min(INDEXED_RECORDS);
         self.next_seq = 0;
         for slot in 0..self.len {
-            let record = self.read(slot);
-            if let Some(r) = &record {
-                self.next_seq = self.next_seq.max(r.seq.saturating_add(1));
-            }
-            let bits = record.map_or(KeyBits([u32::MAX; KEY_BITS_WORDS]), |r| r.key.bits());
-            if let Some(b) = self.index.get_mut(slot) {
-                *b = bits;
+            match self.read(slot) {
+                Some(r) => self.index_record(slot, &r),
+                None => {
+                    if let Some(b) = self.index.get_mut(slot) {
+                        *b = KeyBits([u32::MAX; KEY_BITS_WORDS]);
+                    }
+                }
             }
         }
     }
@@ -264,14 +264,11 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         for r in map_records(file) {
             self.buf.copy_from_slice(r);
             let Ok(record) = PlaceRecord::decode(&self.buf) else { continue };
-            self.next_seq = self.next_seq.max(record.seq.saturating_add(1));
             if self.store.write(self.len, &self.buf).is_err() {
                 self.stats.store_errors = self.stats.store_errors.saturating_add(1);
                 break;
             }
-            if let Some(bits) = self.index.get_mut(self.len) {
-                *bits = record.key.bits();
-            }
+            self.index_record(self.len, &record);
             self.len += 1;
         }
         Ok(())
@@ -320,6 +317,14 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
         }
         record
+    }
+
+    /// Takes `record`, held in slot `slot`, into the index and the creation numbers in use.
+    fn index_record(&mut self, slot: usize, record: &PlaceRecord) {
+        if let Some(bits) = self.index.get_mut(slot) {
+            *bits = record.key.bits();
+        }
+        self.next_seq = self.next_seq.max(record.seq.saturating_add(1));
     }
 
     /// Writes the record [`Places::remember`] left in `buf`, if any (counted in
@@ -409,10 +414,7 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.write_pending();
         record.encode(&mut self.buf);
         self.pending = Some(slot);
-        if let Some(bits) = self.index.get_mut(slot) {
-            *bits = record.key.bits();
-        }
-        self.next_seq = self.next_seq.max(record.seq.saturating_add(1));
+        self.index_record(slot, &record);
         if slot == self.len {
             self.len += 1;
         } else {

@@ -164,9 +164,9 @@ impl<F: NorFlash> FlashStore<F> {
 
     /// The store on `flash` as the last commit left it: the valid table of the highest
     /// generation (in serial-number order, so that generations may wrap), or an empty store when
-    /// there is none (a blank or foreign region; a region
-    /// too small for a table and a record gives a store of no slots). Cost: every
-    /// table unit read once (4 KiB); no record is read.
+    /// there is none (a blank or foreign region; a region too small for a table and a record
+    /// gives a store of no slots). Cost: every table unit read once to check it (4 KiB), the one
+    /// taken read again for its slots; no record is read.
     ///
     /// # Errors
     /// A read the flash refused.

@@ -31,7 +31,7 @@ use crate::map::KeyFrameId;
 use crate::tracking::{FrameResult, FrontendError, FrontendParams, NoPlaces, Places};
 
 pub use crate::backend::SolveJob;
-pub use crate::config::{DEFAULT_BACKEND_QUOTA, HostQvga, HostVga, Qvga, Vga};
+pub use crate::config::{DEFAULT_BACKEND_QUOTA, DEFAULT_DRAIN_STEPS, HostQvga, HostVga, Qvga, Vga};
 pub use profile::{Adjuster, MapAccess, ProfileTypes, Tracker};
 
 /// SLAM at the reference board's profile ([`Qvga`]: 320 x 240, the board's map).

@@ -17,7 +17,9 @@ use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::{KeyFrameId, Map, RamStore};
-use ferroslam_core::system::{Adjuster, MapAccess, ProfileTypes, Slam, Tracker};
+use ferroslam_core::system::{
+    Adjuster, DEFAULT_DRAIN_STEPS, MapAccess, ProfileTypes, Slam, Tracker,
+};
 use ferroslam_core::tracking::{
     FrameResult, FrontendParams, FrontendState, LoopClosure, NoPlaces, PlaceQuery, Places,
 };
@@ -26,9 +28,6 @@ use super::MapFiles;
 use super::data_path::{Progress, drive};
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
-
-/// Back-end steps allowed after the last frame to finish the solve under way.
-const DRAIN_STEPS: u32 = 10_000;
 
 /// A map of more than this many keyframes is a large one, where issue 4 (after the paper) wants
 /// the local window to average 50-65 keyframes.
@@ -413,7 +412,7 @@ where
     if stepper.owed {
         stepper.step()?;
     }
-    slam.drain_backend(cam, quota, DRAIN_STEPS).map_err(backend_error)?;
+    slam.drain_backend(cam, quota, DEFAULT_DRAIN_STEPS).map_err(backend_error)?;
     record.update(&slam);
     let keyframe_pose = &record.keyframe_pose;
     let camera = relative
