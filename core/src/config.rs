@@ -309,6 +309,10 @@ pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 /// save the same map.
 pub const DEFAULT_DRAIN_STEPS: u32 = 10_000;
 
+/// Reads of a store's table or record before it is taken as damaged: a read that flipped a bit
+/// (a read disturb) is transient, a damaged cell is not. Costs nothing on a good read.
+pub const STORE_READ_TRIES: usize = 3;
+
 /// Largest timestamp difference when associating colour, depth and ground truth, in seconds
 /// (the TUM benchmark's and evo's 0.02 s).
 pub const ASSOCIATION_MAX_DT_S: f64 = 0.02;

@@ -24,6 +24,7 @@ pub mod commands;
 pub mod dataset;
 pub mod demo;
 pub mod eval;
+pub mod faults;
 pub mod frame;
 pub mod map_file;
 pub mod plot;

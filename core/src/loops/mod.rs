@@ -33,6 +33,7 @@ mod tests;
 
 use heapless::Vec;
 
+use crate::config::STORE_READ_TRIES;
 use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::Pose;
 use crate::map::{
@@ -305,14 +306,14 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         &self.store
     }
 
-    /// The record in slot `slot`, or `None` (counted as a store error) when it cannot be read.
+    /// The record in slot `slot`, or `None` (counted as a store error) when it cannot be read or
+    /// decoded in [`STORE_READ_TRIES`] reads.
     fn read(&mut self, slot: usize) -> Option<PlaceRecord> {
         self.write_pending();
-        let record = self
-            .store
-            .read(slot, &mut self.buf)
-            .ok()
-            .and_then(|()| PlaceRecord::decode(&self.buf).ok());
+        let record = (0..STORE_READ_TRIES).find_map(|_| {
+            self.store.read(slot, &mut self.buf).ok()?;
+            PlaceRecord::decode(&self.buf).ok()
+        });
         if record.is_none() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
         }

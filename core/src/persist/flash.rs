@@ -28,6 +28,7 @@
 
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
+use crate::config::STORE_READ_TRIES;
 use crate::config::capacity::{BOARD_STORE_FLASH_BYTES, BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES};
 use crate::map::{Fnv1a, KeyframeStore, RecordBytes};
 
@@ -165,8 +166,10 @@ impl<F: NorFlash> FlashStore<F> {
     /// The store on `flash` as the last commit left it: the valid table of the highest
     /// generation (in serial-number order, so that generations may wrap), or an empty store when
     /// there is none (a blank or foreign region; a region too small for a table and a record
-    /// gives a store of no slots). Cost: every table unit read once to check it (4 KiB), the one
-    /// taken read again for its slots; no record is read.
+    /// gives a store of no slots). A table that does not read valid is read again, up to
+    /// [`STORE_READ_TRIES`] times. Cost: every table unit read once to check it (4 KiB; three
+    /// times for one not valid, as on a blank region), the one taken read again for its slots;
+    /// no record is read.
     ///
     /// # Errors
     /// A read the flash refused.
@@ -182,21 +185,23 @@ impl<F: NorFlash> FlashStore<F> {
             return Ok(s);
         }
         s.units = units.min(MAX_RECORD_UNITS) as u16;
-        let mut best: Option<(u32, u8)> = None;
-        for t in 0..TABLE_UNITS as u8 {
-            // Newer in serial-number order: the generation after u32::MAX is 0.
-            if let Some(generation) = s.read_table(t, false)?
-                && best.is_none_or(|(g, _)| (generation.wrapping_sub(g) as i32) > 0)
-            {
-                best = Some((generation, t));
-            }
+        let mut found = [None; TABLE_UNITS];
+        for (t, g) in (0..TABLE_UNITS as u8).zip(&mut found) {
+            *g = s.read_table_again(t, false)?;
         }
-        if let Some((generation, t)) = best {
-            s.read_table(t, true)?;
-            s.generation = generation;
-            s.table_unit = t;
-            s.committed = s.live;
-            s.held = s.len;
+        // The newest valid table, in serial-number order (the generation after u32::MAX is 0);
+        // one that does not read valid again when taken is passed over for the next newest.
+        while let Some((t, generation)) = newest(&found) {
+            if s.read_table_again(t, true)? == Some(generation) {
+                s.generation = generation;
+                s.table_unit = t;
+                s.committed = s.live;
+                s.held = s.len;
+                break;
+            }
+            if let Some(g) = found.get_mut(usize::from(t)) {
+                *g = None;
+            }
         }
         Ok(s)
     }
@@ -214,6 +219,16 @@ impl<F: NorFlash> FlashStore<F> {
     /// Byte offset of unit `unit` of the region (tables first).
     fn offset(unit: usize) -> u32 {
         (unit * PLACE_RECORD_BYTES) as u32
+    }
+
+    /// [`Self::read_table`], up to [`STORE_READ_TRIES`] times until it is valid.
+    fn read_table_again(&mut self, t: u8, take: bool) -> Result<Option<u32>, FlashStoreError> {
+        for _ in 1..STORE_READ_TRIES {
+            if let Some(g) = self.read_table(t, take)? {
+                return Ok(Some(g));
+            }
+        }
+        self.read_table(t, take)
     }
 
     /// Reads table unit `t`; its generation when it is a valid table. With `take`, also takes
@@ -339,6 +354,20 @@ impl<F: NorFlash> FlashStore<F> {
             .map(|i| (self.cursor + i) % self.units)
             .find(|&u| !self.live.has(u) && !self.committed.has(u))
     }
+}
+
+/// The table unit and generation of the newest of `found` (each table unit's generation when
+/// valid), in serial-number order.
+fn newest(found: &[Option<u32>; TABLE_UNITS]) -> Option<(u8, u32)> {
+    let mut best: Option<(u8, u32)> = None;
+    for (t, g) in (0..TABLE_UNITS as u8).zip(found) {
+        if let Some(g) = *g
+            && best.is_none_or(|(_, b)| (g.wrapping_sub(b) as i32) > 0)
+        {
+            best = Some((t, g));
+        }
+    }
+    best
 }
 
 impl<F: NorFlash> KeyframeStore for FlashStore<F> {

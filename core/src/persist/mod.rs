@@ -15,9 +15,11 @@ use core::fmt;
 
 mod cut_flash;
 mod flash;
+mod flip_flash;
 mod slice_flash;
 
 pub use cut_flash::{COUNTED_UNITS, CutError, CutFlash};
+pub use flip_flash::FlipFlash;
 
 pub use flash::{
     FlashStore, FlashStoreError, MAX_RECORD_UNITS, RELOCATE_EVERY, SPARE_UNITS, TABLE_SLOTS,
