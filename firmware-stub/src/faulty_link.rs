@@ -8,6 +8,7 @@
 //! wrong value is never delivered (CRC-32 over every payload). A dropped delimiter merges two
 //! frames, both dropped; a flipped bit that makes a `0x00` splits one, both halves dropped.
 
+use ferroslam_core::pose::TrackingRng;
 use ferroslam_core::wire::MAX_FRAME_ON_WIRE;
 
 /// One kind of link fault, applied to a whole frame.
@@ -44,7 +45,7 @@ const BUFFER: usize = 2 * MAX_FRAME_ON_WIRE;
 pub struct FaultyLink<T> {
     inner: T,
     plan: LinkPlan,
-    rng: u64,
+    rng: TrackingRng,
     buf: [u8; BUFFER],
     /// Bytes of the frame in `buf`.
     len: usize,
@@ -60,7 +61,7 @@ impl<T> FaultyLink<T> {
         Self {
             inner,
             plan,
-            rng: plan.seed ^ 0x9e37_79b9_7f4a_7c15,
+            rng: TrackingRng::new(plan.seed),
             buf: [0; BUFFER],
             len: 0,
             served: 0,
@@ -84,35 +85,21 @@ impl<T> FaultyLink<T> {
         self.inner
     }
 
-    /// splitmix64: the next 64 random bits.
-    fn next_u64(&mut self) -> u64 {
-        self.rng = self.rng.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// A random index below `n` (`n > 0`).
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
-    }
-
     /// Takes the frame of `buf[..len]`, ended by its delimiter, through the plan.
     fn mangle(&mut self) {
         self.frames = self.frames.saturating_add(1);
-        if self.len == 0 || self.next_u64() % 1000 >= u64::from(self.plan.per_mille) {
+        if self.len == 0 || self.rng.below(1000) >= usize::from(self.plan.per_mille) {
             return;
         }
         self.hit = self.hit.saturating_add(1);
-        let at = self.below(self.len);
+        let at = self.rng.below(self.len);
         match self.plan.fault {
             LinkFault::DropByte => {
                 self.buf.copy_within(at + 1..self.len, at);
                 self.len -= 1;
             }
             LinkFault::FlipBit => {
-                let bit = self.below(8);
+                let bit = self.rng.below(8);
                 if let Some(b) = self.buf.get_mut(at) {
                     *b ^= 1 << bit;
                 }

@@ -91,6 +91,11 @@ impl Pipeline {
         self.slam.map().remember_all_in(places);
     }
 
+    /// The core's state (map, front end, back end), read only: what a host check inspects.
+    pub fn slam(&self) -> &QvgaSlam {
+        &self.slam
+    }
+
     /// The index the next frame gets.
     pub fn next_index(&self) -> u32 {
         self.next_index

@@ -14,6 +14,7 @@ use std::ops::Range;
 
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
 use ferroslam_core::image::ImageError;
+use ferroslam_core::pose::TrackingRng;
 
 use crate::frame::{OwnedFrame, halve_frame};
 
@@ -108,7 +109,7 @@ pub enum FaultySourceError<E: std::error::Error + 'static> {
 pub struct FaultySource<S> {
     inner: S,
     plan: FaultPlan,
-    rng: u64,
+    rng: TrackingRng,
     /// Frames taken from `inner` so far.
     taken: usize,
     /// Frames ready to go out, in order.
@@ -130,11 +131,10 @@ impl<S> FaultySource<S> {
     /// [`FrameFault::OtherScene`] swaps in (used in turn; with none, that fault leaves frames
     /// clean and injects nothing).
     pub fn new(inner: S, plan: FaultPlan, foreign: Vec<OwnedFrame>) -> Self {
-        let rng = plan.seed ^ 0x9e37_79b9_7f4a_7c15;
         Self {
             inner,
+            rng: TrackingRng::new(plan.seed),
             plan,
-            rng,
             taken: 0,
             queue: VecDeque::new(),
             current: None,
@@ -151,23 +151,13 @@ impl<S> FaultySource<S> {
         &self.injected
     }
 
-    /// splitmix64: the next 64 random bits.
-    fn next_u64(&mut self) -> u64 {
-        self.rng = self.rng.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
     /// Whether input frame `index` is hit (one draw per frame in the span, hit or not).
     fn hits(&mut self, index: usize) -> bool {
         if !self.plan.span.contains(&index) {
             return false;
         }
-        // 53 random bits as a uniform value in [0, 1).
-        let u = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        u < self.plan.rate
+        // 32 random bits as a uniform value in [0, 1).
+        f64::from(self.rng.next_u32()) / 4_294_967_296.0 < self.plan.rate
     }
 
     /// Applies `fault` to `frame`, the latest frame taken (`next`, taken after it for
@@ -197,14 +187,14 @@ impl<S> FaultySource<S> {
             }
             FrameFault::CorruptRows => {
                 let band = (frame.height / 8).max(1);
-                let top = (self.next_u64() % frame.height.max(1) as u64) as usize;
+                let top = self.rng.below(frame.height);
                 let rows = top..(top + band).min(frame.height);
                 let (dw, _) = frame.depth_size();
                 let shift = frame.depth_level;
                 for y in rows.clone() {
                     for x in 0..frame.width {
                         if let Some(p) = frame.gray.get_mut(y * frame.width + x) {
-                            *p = self.next_u64() as u8;
+                            *p = self.rng.next_u32() as u8;
                         }
                     }
                 }
@@ -213,7 +203,7 @@ impl<S> FaultySource<S> {
                 for y in depth_rows {
                     for x in 0..dw {
                         if let Some(d) = frame.depth.get_mut(y * dw + x) {
-                            *d = self.next_u64() as u16;
+                            *d = self.rng.next_u32() as u16;
                         }
                     }
                 }

@@ -110,6 +110,11 @@ impl<W: io::Write> WireWriter<W> {
     pub fn into_inner(self) -> W {
         self.out
     }
+
+    /// The output, to read or empty it between messages.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.out
+    }
 }
 
 impl<W: io::Write> TelemetrySink for WireWriter<W> {

@@ -69,6 +69,17 @@ pub fn run_all() -> Result<()> {
         cargo(&["test", "-p", "ferroslam-firmware", "--lib"])
     })?;
     step("fuzz targets, a fixed number of inputs each", fuzz)?;
+    step("faults injected on 7-Scenes (frames, serial link, store reads) at 1% and 10%", || {
+        crate::faults::run(&["--json".to_owned(), path_arg(&ci_out("faults.json"))])
+    })?;
+    step("soak: the board's pipeline over the demo and 7-Scenes in laps", || {
+        crate::soak::run(&[
+            "--frames".to_owned(),
+            SOAK_FRAMES.to_string(),
+            "--json".to_owned(),
+            path_arg(&ci_out("soak.json")),
+        ])
+    })?;
     step("thumb build, no allocator", thumb_build_without_allocator)?;
     step("firmware in QEMU, bit-identical to the host replay", firmware_replay)?;
     step("budgets: RAM, flash, stack, instructions per frame (same QEMU run)", budgets)?;
@@ -93,6 +104,14 @@ pub fn run_all() -> Result<()> {
 /// together take about 70 s on the 2-core CI machine (docs/decisions.md, "Fuzzing on the stable
 /// toolchain").
 const FUZZ_ITERATIONS: u64 = 350_000;
+
+/// Frames of each recording CI's soak runs (issue 50: 5,000 in CI, 100,000 by hand).
+const SOAK_FRAMES: usize = 5_000;
+
+/// `path` as a command-line argument.
+fn path_arg(path: &Path) -> String {
+    path.to_string_lossy().into_owned()
+}
 
 /// Every fuzz target for [`FUZZ_ITERATIONS`] inputs (`cargo xtask fuzz --iterations`), in
 /// process: a panic or a broken property fails the step, its input saved under

@@ -34,6 +34,11 @@
 //!   wire, calibration, lists, trajectory, image) and the SLAM pipeline on adversarial frames,
 //!   under a deterministic mutation fuzzer (seed corpora in `fuzz/corpus/`); `ci` runs every
 //!   target for a fixed number of inputs; see `fuzz.rs`.
+//! - `faults [--frames A-B,...] [--rates P,Q] [--seed S] [--strict] [--json FILE] [--out DIR]`:
+//!   the board's pipeline on 7-Scenes with each fault (frame source, serial link, store reads)
+//!   injected at two rates, against the clean run; see `faults.rs`.
+//! - `soak [--frames N] [--recording demo|7scenes|both] [--json FILE]`: the board's pipeline over
+//!   recordings played in laps for N frames; see `soak.rs`.
 //!
 //! The depth-to-colour calibration estimator that `calibration/7scenes-kinect-v1.toml` came from
 //! is a host-sim command, `ferroslam-sim calibrate-depth DATASET --out FILE` (it was `cargo xtask
@@ -41,7 +46,8 @@
 //!
 //! Modules, top down (no module imports one above it): `main` parses the subcommand; `ci` runs
 //! the pipeline and nothing imports it; each other subcommand has its module (`budgets`,
-//! `profile`, `heldout`, `spread`, `bench`, `fuzz`, and `replay`, the firmware replay that
+//! `profile`, `heldout`, `spread`, `bench`, `fuzz`, `faults`, `soak` (which uses `faults`' frame
+//! loading), and `replay`, the firmware replay that
 //! `budgets`, `profile` and `ci` run too), over the pieces they share: `budget_tables` and
 //! `budget_doc` (`memory-budget.md`), `budget_figures` (what `budgets` measures and judges), `sim`
 //! (host-sim's replay in process, held to an accuracy bar), `cost` (a firmware run's per-frame
@@ -58,6 +64,7 @@ mod cargo;
 mod ci;
 mod cost;
 mod fast_demo;
+mod faults;
 mod firmware;
 mod fuzz;
 mod heldout;
@@ -65,6 +72,7 @@ mod paths;
 mod profile;
 mod replay;
 mod sim;
+mod soak;
 mod spread;
 mod stats;
 
@@ -85,6 +93,8 @@ fn main() -> ExitCode {
         Some("spread") => spread::run(&args[1..]),
         Some("heldout") => heldout::run(&args[1..]),
         Some("fuzz") => fuzz::run(&args[1..]),
+        Some("faults") => faults::run(&args[1..]),
+        Some("soak") => soak::run(&args[1..]),
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
@@ -96,7 +106,8 @@ fn main() -> ExitCode {
                  spread [--dataset DIR] [--calibration FILE] [--seeds N] [--skips A,B,...] \
                  [--json FILE] [-- REPLAY ARGS] | heldout [--dataset DIR]... | \
                  fuzz [--seconds N | --iterations N] [--target NAME] [--seed S] [--replay FILE] \
-                 [--write-corpus]> \
+                 [--write-corpus] | faults [--frames A-B,...] [--rates P,Q] [--seed S] [--strict] \
+                 [--json FILE] [--out DIR] | soak [--frames N] [--recording demo|7scenes|both] [--json FILE]> \
                  (the depth calibration estimator is `ferroslam-sim calibrate-depth`)"
             );
             return ExitCode::from(2);

@@ -4,13 +4,15 @@
 
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 
+use crate::pose::TrackingRng;
+
 /// `F` with one bit flipped in `per_mille` of every thousand reads (see the module
 /// documentation). Programs and erases pass through unchanged.
 #[derive(Debug)]
 pub struct FlipFlash<F> {
     inner: F,
     per_mille: u16,
-    rng: u64,
+    rng: TrackingRng,
     reads: u64,
     flipped: u64,
 }
@@ -19,7 +21,7 @@ impl<F> FlipFlash<F> {
     /// `inner` with a bit flipped in `per_mille` reads of a thousand (1000: every read), drawn
     /// from a generator seeded by `seed`.
     pub const fn new(inner: F, per_mille: u16, seed: u64) -> Self {
-        Self { inner, per_mille, rng: seed ^ 0x9e37_79b9_7f4a_7c15, reads: 0, flipped: 0 }
+        Self { inner, per_mille, rng: TrackingRng::new(seed), reads: 0, flipped: 0 }
     }
 
     /// Reads done.
@@ -36,15 +38,6 @@ impl<F> FlipFlash<F> {
     pub fn into_inner(self) -> F {
         self.inner
     }
-
-    /// splitmix64: the next 64 random bits.
-    fn next_u64(&mut self) -> u64 {
-        self.rng = self.rng.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
 }
 
 impl<F: NorFlash> ErrorType for FlipFlash<F> {
@@ -57,8 +50,8 @@ impl<F: NorFlash> ReadNorFlash for FlipFlash<F> {
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         self.inner.read(offset, bytes)?;
         self.reads += 1;
-        if !bytes.is_empty() && self.next_u64() % 1000 < u64::from(self.per_mille) {
-            let bit = self.next_u64() as usize % (bytes.len() * 8);
+        if !bytes.is_empty() && self.rng.below(1000) < usize::from(self.per_mille) {
+            let bit = self.rng.below(bytes.len() * 8);
             if let Some(b) = bytes.get_mut(bit / 8) {
                 *b ^= 1 << (bit % 8);
                 self.flipped += 1;

@@ -238,10 +238,12 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         (matches, estimate)
     }
 
-    /// The previous frame's pose turned by the rotation the small blurry images show between it
-    /// and this frame (see [`crate::pose::small_image_rotation`]), starting from the rotation `predicted_t_cw` implies.
+    /// The last frame's pose turned by the rotation the small blurry images show between it and
+    /// this frame (see [`crate::pose::small_image_rotation`]), starting from the rotation
+    /// `predicted_t_cw` implies. The last frame not lost: a lost one's image and pose are not a
+    /// reference.
     fn rotation_prediction(&mut self, cam: &PinholeCamera, predicted_t_cw: &Pose) -> Option<Pose> {
-        let prev = self.recent.last_t_cw()?;
+        let prev = self.recent.seen_t_cw?;
         self.work.rotation_estimated = true;
         let initial = (predicted_t_cw * prev.inverse()).rotation;
         let small = &self.recent;

@@ -64,7 +64,10 @@ pub(super) struct Recent {
     pub(super) lost_run: u32,
     /// Constant-velocity prediction from the tracked poses.
     pub(super) motion: MotionModel,
-    /// This frame and the previous one as small blurry images (the rotation's re-estimate).
+    /// The output `t_cw` of the last frame not lost: the pose of `small_previous`.
+    pub(super) seen_t_cw: Option<Pose>,
+    /// This frame, and the last frame not lost before it, as small blurry images (the
+    /// rotation's re-estimate).
     pub(super) small_current: SmallImage,
     pub(super) small_previous: SmallImage,
 }
@@ -77,6 +80,7 @@ impl Recent {
             inliers: 0,
             lost_run: 0,
             motion: MotionModel::new(),
+            seen_t_cw: None,
             small_current: SmallImage::new(),
             small_previous: SmallImage::new(),
         }
@@ -96,15 +100,20 @@ impl Recent {
         self.last_t_cw().unwrap_or_else(Pose::identity)
     }
 
-    /// Remembers the frame at `timestamp_s` as `result` left it; its small image becomes the
-    /// previous one.
+    /// Remembers the frame at `timestamp_s` as `result` left it; unless it was lost, its small
+    /// image becomes the previous one.
     pub(super) fn remember(&mut self, timestamp_s: f64, result: &FrameResult) {
         self.state = result.state;
         self.last = Some((timestamp_s, result.t_wc.inverse()));
         self.inliers = result.inliers;
         self.lost_run =
             if result.state == FrontendState::Lost { self.lost_run.saturating_add(1) } else { 0 };
-        core::mem::swap(&mut self.small_current, &mut self.small_previous);
+        // A lost frame's small image is not the rotation's reference: it may show nothing of the
+        // scene (a covered lens, another scene), and its pose is only the prediction.
+        if result.state != FrontendState::Lost {
+            self.seen_t_cw = Some(result.t_wc.inverse());
+            core::mem::swap(&mut self.small_current, &mut self.small_previous);
+        }
     }
 }
 
