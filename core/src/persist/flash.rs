@@ -166,9 +166,9 @@ impl<F: NorFlash> FlashStore<F> {
     /// The store on `flash` as the last commit left it: the valid table of the highest
     /// generation (in serial-number order, so that generations may wrap), or an empty store when
     /// there is none (a blank or foreign region; a region too small for a table and a record
-    /// gives a store of no slots). A table that does not read valid is read again, up to
-    /// [`STORE_READ_TRIES`] times. Cost: every table unit read once to check it (4 KiB; three
-    /// times for one not valid, as on a blank region), the one taken read again for its slots;
+    /// gives a store of no slots). A table that reads damaged is read again, up to
+    /// [`STORE_READ_TRIES`] times. Cost: every table unit read once to check it (4 KiB; a
+    /// damaged one up to three times), the one taken read again for its slots;
     /// no record is read.
     ///
     /// # Errors
@@ -221,19 +221,25 @@ impl<F: NorFlash> FlashStore<F> {
         (unit * PLACE_RECORD_BYTES) as u32
     }
 
-    /// [`Self::read_table`], up to [`STORE_READ_TRIES`] times until it is valid.
+    /// [`Self::read_table`], up to [`STORE_READ_TRIES`] times while it reads as a damaged table
+    /// (its magic right, the rest not): a blank or foreign unit is read once.
     fn read_table_again(&mut self, t: u8, take: bool) -> Result<Option<u32>, FlashStoreError> {
         for _ in 1..STORE_READ_TRIES {
-            if let Some(g) = self.read_table(t, take)? {
-                return Ok(Some(g));
+            match self.read_table(t, take)? {
+                TableRead::Valid(g) => return Ok(Some(g)),
+                TableRead::NotATable => return Ok(None),
+                TableRead::Damaged => {}
             }
         }
-        self.read_table(t, take)
+        match self.read_table(t, take)? {
+            TableRead::Valid(g) => Ok(Some(g)),
+            TableRead::NotATable | TableRead::Damaged => Ok(None),
+        }
     }
 
-    /// Reads table unit `t`; its generation when it is a valid table. With `take`, also takes
+    /// Reads table unit `t`: its generation when it is a valid table. With `take`, also takes
     /// its slots as the live map. Cost: one unit read, in 64-byte pieces.
-    fn read_table(&mut self, t: u8, take: bool) -> Result<Option<u32>, FlashStoreError> {
+    fn read_table(&mut self, t: u8, take: bool) -> Result<TableRead, FlashStoreError> {
         let mut hash = Fnv1a::default();
         let mut head = [0u32; TABLE_HEAD_WORDS];
         let mut stored = 0u32;
@@ -269,21 +275,19 @@ impl<F: NorFlash> FlashStore<F> {
                 }
             }
         }
-        let magic = head[0].to_le_bytes();
+        if head[0].to_le_bytes() != [TABLE_MAGIC[0], TABLE_MAGIC[1], TABLE_VERSION, 0] {
+            return Ok(TableRead::NotATable);
+        }
         let len = head[2] as u16;
-        let valid = stored == hash.value()
-            && magic == [TABLE_MAGIC[0], TABLE_MAGIC[1], TABLE_VERSION, 0]
-            && usize::from(len) <= TABLE_SLOTS
-            && !bad;
-        if !valid {
-            return Ok(None);
+        if stored != hash.value() || usize::from(len) > TABLE_SLOTS || bad {
+            return Ok(TableRead::Damaged);
         }
         if take {
             self.len = len;
             self.cursor = ((head[2] >> 16) as u16).min(self.units.saturating_sub(1));
             self.live = used;
         }
-        Ok(Some(head[1]))
+        Ok(TableRead::Valid(head[1]))
     }
 
     /// Word `w` of the live map's table under generation `generation` (the checksum word
@@ -354,6 +358,16 @@ impl<F: NorFlash> FlashStore<F> {
             .map(|i| (self.cursor + i) % self.units)
             .find(|&u| !self.live.has(u) && !self.committed.has(u))
     }
+}
+
+/// What a table unit read as.
+enum TableRead {
+    /// A valid table of this generation.
+    Valid(u32),
+    /// The table magic, but a checksum or contents that do not hold.
+    Damaged,
+    /// Not a table: blank, foreign, or its magic damaged.
+    NotATable,
 }
 
 /// The table unit and generation of the newest of `found` (each table unit's generation when
