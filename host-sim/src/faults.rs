@@ -162,7 +162,7 @@ impl<S> FaultySource<S> {
 
     /// Applies `fault` to `frame`, the latest frame taken (`next`, taken after it for
     /// [`FrameFault::Duplicate`] and [`FrameFault::Reorder`]), queueing what goes out.
-    fn inject(&mut self, fault: FrameFault, mut frame: OwnedFrame, next: Option<OwnedFrame>) {
+    fn inject(&mut self, fault: FrameFault, mut frame: OwnedFrame, mut next: Option<OwnedFrame>) {
         match fault {
             FrameFault::Drop => {}
             FrameFault::Duplicate => {
@@ -173,14 +173,10 @@ impl<S> FaultySource<S> {
                 self.queue.push_back(frame);
                 self.queue.push_back(copy);
             }
-            FrameFault::Reorder => match next {
-                Some(n) => {
-                    self.queue.push_back(n);
-                    self.queue.push_back(frame);
-                    return;
-                }
-                None => self.queue.push_back(frame),
-            },
+            FrameFault::Reorder => {
+                self.queue.extend(next.take());
+                self.queue.push_back(frame);
+            }
             FrameFault::RepeatTimestamp => {
                 frame.timestamp_s = self.previous_s.unwrap_or(frame.timestamp_s);
                 self.queue.push_back(frame);
@@ -198,9 +194,7 @@ impl<S> FaultySource<S> {
                         }
                     }
                 }
-                let depth_rows =
-                    (rows.start >> shift)..(rows.end >> shift).max(rows.start >> shift);
-                for y in depth_rows {
+                for y in (rows.start >> shift)..(rows.end >> shift) {
                     for x in 0..dw {
                         if let Some(d) = frame.depth.get_mut(y * dw + x) {
                             *d = self.rng.next_u32() as u16;

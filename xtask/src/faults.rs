@@ -28,7 +28,6 @@
 //! few frames taken out or perturbed move a SLAM run's ATE by about as much: see
 //! `docs/reliability.md`).
 
-use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -535,7 +534,7 @@ pub fn run(args: &[String]) -> Result<()> {
         cases.push((Fault::StoreReadFlip, rate));
     }
     for (fault, rate) in cases {
-        let (run, rx) = match fault {
+        let run = match fault {
             Fault::Frame(f) => {
                 let plan =
                     FaultPlan { fault: f, rate: f64::from(rate) / 100.0, span: SPAN, seed: o.seed };
@@ -546,8 +545,7 @@ pub fn run(args: &[String]) -> Result<()> {
                 );
                 let (mut run, source) = run_board(source, &rec.cam, (0, 0))?;
                 run.injected = source.injected().len();
-                let rx = receive(&run.bytes);
-                (run, rx)
+                run
             }
             Fault::Link(f) => {
                 let plan = LinkPlan { fault: f, per_mille: (rate * 10) as u16, seed: o.seed };
@@ -561,24 +559,22 @@ pub fn run(args: &[String]) -> Result<()> {
                     }
                     bytes.extend_from_slice(&chunk[..n]);
                 }
-                let run = BoardRun {
+                BoardRun {
                     bytes,
                     stamps: clean_run.stamps.clone(),
                     injected: link.hit() as usize,
                     ..clean_run
-                };
-                let rx = receive(&run.bytes);
-                (run, rx)
+                }
             }
             Fault::StoreReadFlip => {
                 let source = Frames { frames: &rec.frames, next: 0 };
                 let (mut run, _) = run_board(source, &rec.cam, ((rate * 10) as u16, o.seed))?;
                 run.injected = run.store_flips as usize;
-                let rx = receive(&run.bytes);
-                (run, rx)
+                run
             }
             Fault::Clean => continue,
         };
+        let rx = receive(&run.bytes);
         if let Some(dir) = &o.out {
             let name = format!("{}-{rate}.txt", fault.name().replace([':', ' '], "-"));
             trajectory(&rx.poses).write_tum(&dir.join(name))?;
@@ -654,19 +650,28 @@ fn write_json(path: &std::path::Path, rows: &[Row]) -> Result<()> {
         .iter()
         .map(|r| {
             json!({
-                "fault": r.fault, "rate_percent": r.rate_percent, "injected": r.injected,
-                "frames_delivered": r.delivered, "poses": r.poses, "rejected": r.rejected,
-                "lost": r.lost, "lost_after_faults": r.lost_in_tail,
-                "relocalized": r.relocalized, "loops": r.loops,
-                "store_reads": r.store_reads, "store_errors": r.store_errors, "ate_rmse_m": r.ate_m, "problems": r.problems, "ate_bar_missed": r.ate_miss,
+                "fault": r.fault,
+                "rate_percent": r.rate_percent,
+                "injected": r.injected,
+                "frames_delivered": r.delivered,
+                "poses": r.poses,
+                "rejected": r.rejected,
+                "lost": r.lost,
+                "lost_after_faults": r.lost_in_tail,
+                "relocalized": r.relocalized,
+                "loops": r.loops,
+                "store_reads": r.store_reads,
+                "store_errors": r.store_errors,
+                "ate_rmse_m": r.ate_m,
+                "problems": r.problems,
+                "ate_bar_missed": r.ate_miss,
             })
         })
         .collect();
-    let by: BTreeMap<&str, serde_json::Value> =
-        [("span", json!([SPAN.start, SPAN.end])), ("runs", json!(rows))].into_iter().collect();
+    let report = json!({ "span": [SPAN.start, SPAN.end], "runs": rows });
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    std::fs::write(path, serde_json::to_string_pretty(&by)?)
+    std::fs::write(path, serde_json::to_string_pretty(&report)?)
         .with_context(|| format!("writing {}", path.display()))
 }

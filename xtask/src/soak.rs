@@ -25,20 +25,19 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use ferroslam_core::config::capacity::{BOARD_STORE_FLASH_BYTES, MAX_KEYFRAMES, MAX_LANDMARKS};
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
-use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::geometry::{PinholeCamera, align_rigid};
 use ferroslam_core::image::ImageError;
 use ferroslam_core::loops::{INDEXED_RECORDS, PlaceMemory};
 use ferroslam_core::persist::{FlashStore, SliceFlash};
 use ferroslam_core::wire::{Message, PoseFlags, TrackingState};
 use ferroslam_firmware::pipeline::Pipeline;
-use ferroslam_sim::eval::evaluate;
 use ferroslam_sim::frame::{OwnedFrame, halve_frame};
 use ferroslam_sim::serial::decode_capture;
-use ferroslam_sim::trajectory::{StampedPose, Trajectory};
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use ferroslam_sim::trajectory::Trajectory;
+use nalgebra::{Isometry3, Point3};
 use serde_json::json;
 
 use crate::faults::{Board, seven_scenes};
@@ -133,26 +132,16 @@ fn lap_errors(
     (rmse, worst)
 }
 
-/// `T_gt_est` aligning the first lap's `poses` to `truth` (evo's SE(3) alignment).
+/// `T_gt_est` aligning the first lap's `poses` to `truth`: the camera centres aligned by SE(3)
+/// without scale, as `evaluate` (evo) aligns them.
 fn first_lap_alignment(
     poses: &[(Isometry3<f64>, bool)],
     truth: &[Isometry3<f64>],
 ) -> Result<Isometry3<f64>> {
-    let stamped = |t: &[Isometry3<f64>]| {
-        Trajectory::new(
-            t.iter()
-                .enumerate()
-                .map(|(i, p)| StampedPose { timestamp_s: i as f64 / 30.0, t_wc: *p })
-                .collect(),
-        )
-    };
-    let est: Vec<Isometry3<f64>> = poses.iter().map(|(p, _)| *p).collect();
-    let report =
-        evaluate(&stamped(truth), &stamped(&est), 0.02).context("aligning the first lap")?;
-    let a = report.alignment;
-    let [qx, qy, qz, qw] = a.quaternion_xyzw;
-    let rotation = UnitQuaternion::from_quaternion(Quaternion::new(qw, qx, qy, qz));
-    Ok(Isometry3::from_parts(Translation3::from(Vector3::from(a.translation_m)), rotation))
+    let centre = |t: &Isometry3<f64>| Point3::from(t.translation.vector);
+    let est: Vec<Point3<f64>> = poses.iter().map(|(p, _)| centre(p)).collect();
+    let gt: Vec<Point3<f64>> = truth.iter().map(centre).collect();
+    align_rigid(&est, &gt).map_err(|e| anyhow!("aligning the first lap: {e:?}"))
 }
 
 /// Soaks one recording (see the module documentation); returns the laps.
@@ -180,10 +169,9 @@ fn soak(rec: &Soaked, total: usize) -> Result<Vec<Lap>> {
             for m in &capture.messages {
                 let Message::Pose(p) = m else { continue };
                 poses.push((p.t_wc().cast::<f64>(), p.state == TrackingState::Tracking));
-                lap.poses += 1;
                 if p.state == TrackingState::Lost {
                     lap.lost += 1;
-                    if lap.lost == lap.poses {
+                    if lap.lost == poses.len() {
                         lap.lost_at_start += 1;
                     }
                 }
@@ -191,6 +179,7 @@ fn soak(rec: &Soaked, total: usize) -> Result<Vec<Lap>> {
                 lap.loops += usize::from(p.flags.contains(PoseFlags::LOOP_CLOSED));
             }
             board.sink.get_mut().clear();
+            lap.poses = poses.len();
             let truth = &rec.truth[..poses.len().min(rec.truth.len())];
             let align = match align {
                 Some(a) => a,

@@ -224,17 +224,17 @@ impl<F: NorFlash> FlashStore<F> {
     /// [`Self::read_table`], up to [`STORE_READ_TRIES`] times while it reads as a damaged table
     /// (its magic right, the rest not): a blank or foreign unit is read once.
     fn read_table_again(&mut self, t: u8, take: bool) -> Result<Option<u32>, FlashStoreError> {
+        let mut read = self.read_table(t, take)?;
         for _ in 1..STORE_READ_TRIES {
-            match self.read_table(t, take)? {
-                TableRead::Valid(g) => return Ok(Some(g)),
-                TableRead::NotATable => return Ok(None),
-                TableRead::Damaged => {}
+            if !matches!(read, TableRead::Damaged) {
+                break;
             }
+            read = self.read_table(t, take)?;
         }
-        match self.read_table(t, take)? {
-            TableRead::Valid(g) => Ok(Some(g)),
-            TableRead::NotATable | TableRead::Damaged => Ok(None),
-        }
+        Ok(match read {
+            TableRead::Valid(g) => Some(g),
+            TableRead::NotATable | TableRead::Damaged => None,
+        })
     }
 
     /// Reads table unit `t`: its generation when it is a valid table. With `take`, also takes
