@@ -62,6 +62,8 @@ pub struct Measurements {
     pub cost_json: PathBuf,
     /// Other recordings' runs of the same build, by the name keying their figures.
     pub also: Vec<(String, FirmwareRun)>,
+    /// What the boot cost, for the runs of `also` that booted from a saved map.
+    pub boots: Vec<(String, crate::board_runs::BootCost)>,
     /// Both firmware binaries, in [`firmware::BINARIES`] order.
     pub binaries: Vec<Binary>,
     /// The core structures' `size_of` on this host.

@@ -297,6 +297,7 @@ mod tests {
             },
             cost_json: "cost.json".into(),
             also: Vec::new(),
+            boots: Vec::new(),
             binaries: Vec::new(),
             structures: Vec::new(),
             figures: Vec::new(),

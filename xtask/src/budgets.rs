@@ -27,10 +27,16 @@
 //! its hash); otherwise it runs `firmware-replay` itself on `--frames` (default 1000, at least
 //! [`MIN_FRAMES`]) frames of `--dataset` (default 7-Scenes) into `--out` (default
 //! `target/xtask/budgets`), bit-identical check included, and the same on the second recording,
-//! [`fast_demo`](crate::fast_demo) (into `<out>-fast-demo`). `--also NAME=DIR` (repeatable) adds the
+//! [`fast_demo`](crate::fast_demo) (into `<out>-fast-demo`), on 7-Scenes' jump-back (`jump_back.*`,
+//! into `<out>-jump-back`: the frames around a relocalization from the flash store) and on its
+//! power cycle (`boot.*`: a run saves its map into `<out>-save-map`, a second boot localizes in
+//! it into `<out>-boot`; see [`board_runs`]). `--also NAME=DIR` (repeatable) adds the
 //! `firmware-replay` run in `DIR` of another recording, from the same build: its instructions per
 //! frame and RAM are figures `NAME.insn_per_frame_median`, ..., `NAME.ram_total_bytes`, so the
-//! bars can be held on more than one recording (CI: 7-Scenes and the shake + fast-rotation demo).
+//! bars can be held on more than one recording (CI: all five runs above). A run that booted from
+//! a saved map also has `NAME.store_mount_insn` (mounting the store and indexing its records),
+//! `NAME.frames_to_first_pose` (frames up to the first relocalized one, that one included) and
+//! `NAME.insn_to_first_pose` (the mount and those frames' pipeline).
 //!
 //! How it judges: every budget of the block in `memory-budget.md` has the issue's `bar` and,
 //! where the bar is not met today, a `ceiling` (a regression guard a few percent above the figure
@@ -49,6 +55,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use serde_json::{Map, Value, json};
 
+use crate::board_runs::{self, BootCost};
 use crate::budget_doc::{self, Budget};
 use crate::budget_figures::{Binary, Check, Measurements, VGA_DOES_NOT_RUN, show};
 use crate::cost::{FirmwareRun, fnv1a64};
@@ -65,6 +72,14 @@ pub const P99_MIN_FRAMES: usize = 100;
 
 /// Frames replayed when no `--from` run is given (all of 7-Scenes, as CI).
 const DEFAULT_FRAMES: usize = 1000;
+
+/// The name of the figures of the jump-back run ([`board_runs::jump_back`]): the frames of a
+/// relocalization from the flash store are budgeted too.
+pub const JUMP_BACK_RUN: &str = "jump_back";
+
+/// The name of the figures of the second boot ([`board_runs::power_cycle`]): its frames, and what
+/// the boot cost up to its first pose ([`BootCost`]).
+pub const BOOT_RUN: &str = "boot";
 
 /// The options.
 #[derive(Debug, Clone, PartialEq)]
@@ -177,9 +192,15 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
             dir.clone()
         }
         None => {
-            let fast_demo = fast_demo_out(&opts.out);
+            let fast_demo = out_beside(&opts.out, "fast-demo");
             crate::fast_demo::write_and_replay(root, &fast_demo)?;
             also_dirs.push((crate::fast_demo::NAME.to_owned(), fast_demo));
+            let jump_back = out_beside(&opts.out, "jump-back");
+            board_runs::jump_back(&jump_back)?;
+            also_dirs.push((JUMP_BACK_RUN.to_owned(), jump_back));
+            let boot = out_beside(&opts.out, "boot");
+            board_runs::power_cycle(&out_beside(&opts.out, "save-map"), &boot)?;
+            also_dirs.push((BOOT_RUN.to_owned(), boot));
             let replay = ReplayOptions {
                 dataset: opts.dataset.clone(),
                 calibration: calibration_for(&opts.dataset),
@@ -222,11 +243,18 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
         .iter()
         .map(|(name, dir)| Ok((name.clone(), read_run(dir)?)))
         .collect::<Result<Vec<_>>>()?;
+    let mut boots = Vec::new();
+    for (name, dir) in &also_dirs {
+        if let Some(boot) = BootCost::read(dir)? {
+            boots.push((name.clone(), boot));
+        }
+    }
     let binaries = BINARIES.iter().map(|b| Binary::read(root, b)).collect::<Result<Vec<_>>>()?;
     let mut m = Measurements {
         run,
         cost_json,
         also,
+        boots,
         binaries,
         structures: ferroslam_tests::structures::core_structures(),
         figures: Vec::new(),
@@ -235,10 +263,11 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
     Ok(m)
 }
 
-/// Where `budgets` without `--from` replays the second recording: `<out>-fast-demo`.
-fn fast_demo_out(out: &Path) -> PathBuf {
+/// Where `budgets` without `--from` replays another run: `<out>-<what>`.
+fn out_beside(out: &Path, what: &str) -> PathBuf {
     let mut name = out.file_name().unwrap_or_default().to_os_string();
-    name.push("-fast-demo");
+    name.push("-");
+    name.push(what);
     out.with_file_name(name)
 }
 
@@ -271,6 +300,12 @@ fn figures(m: &Measurements) -> Vec<(String, Option<u64>)> {
         insn.push((format!("{name}.ram_total_bytes"), static_ram.map(|r| r + stack)));
         insn.push((format!("{name}.frames"), Some(run.frames.len() as u64)));
         insn.push((format!("{name}.keyframes"), Some(run.keyframe_count() as u64)));
+        if let Some((_, boot)) = m.boots.iter().find(|(n, _)| n == name) {
+            let first = boot.first_relocalized.map(|i| i as u64 + 1);
+            insn.push((format!("{name}.store_mount_insn"), Some(boot.mount)));
+            insn.push((format!("{name}.frames_to_first_pose"), first));
+            insn.push((format!("{name}.insn_to_first_pose"), boot.insn_to_first_pose(run)));
+        }
     }
     let vga_known = [
         (

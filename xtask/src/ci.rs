@@ -9,6 +9,7 @@ use anyhow::{Context, Result, bail};
 use ferroslam_sim::dataset::calibrate_depth::{self, FrameSelection};
 use ferroslam_sim::run::TrackMode;
 
+use crate::board_runs::{self, BootCost};
 use crate::cargo::{cargo, cargo_with_env};
 use crate::paths::{SEVEN_SCENES, SEVEN_SCENES_CALIBRATION, THUMB, ci_out, root};
 use crate::replay::BoardMaps;
@@ -154,118 +155,61 @@ fn no_allocator_in(elf: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Frames of 7-Scenes the CI's firmware replay compares: all of them (~50 s; the issue asks for
-/// at least 60).
-const FIRMWARE_REPLAY_FRAMES: usize = 1000;
-
-/// The firmware in QEMU on the first frames of 7-Scenes and on the second recording of the
-/// budgets ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`).
+/// The firmware in QEMU on 7-Scenes and on the second recording of the budgets
+/// ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`); then
+/// the jump-back and the power cycle of [`crate::board_runs`].
 fn firmware_replay() -> Result<()> {
-    seven_scenes_on_the_board(None, firmware_replay_dir(), BoardMaps::default())?;
+    board_runs::seven_scenes(None, firmware_replay_dir(), BoardMaps::default())?;
     crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
     firmware_jump_back()?;
     firmware_power_cycle()
 }
 
-/// The frames of 7-Scenes the board maps and saves, then localizes in after a second boot.
-const FIRMWARE_SAVE_FRAMES: &str = "0-499";
-const FIRMWARE_LOCALIZE_FRAMES: &str = "500-999";
 /// Frames of the second boot by which its first pose must be relocalized (issue 48's bar).
 const FIRST_RELOCALIZED_WITHIN: usize = 5;
 
-/// Issue 48 on the board: a run on 7-Scenes [`FIRMWARE_SAVE_FRAMES`] saves its map to the flash
-/// region, and the map in the flash image is the host replay's saved map byte for byte; a second
-/// boot with that flash image localizes on [`FIRMWARE_LOCALIZE_FRAMES`], every pose bit-identical
-/// to the host replay that loads the host's map, relocalized within
-/// [`FIRST_RELOCALIZED_WITHIN`] frames, with the RAM bar held (static RAM + peak stack).
+/// Issue 48 on the board ([`board_runs::power_cycle`]): the map in the first run's flash image
+/// is the host replay's saved map byte for byte; the second boot's poses are bit-identical to
+/// the host replay that loads the host's map, its first relocalized within
+/// [`FIRST_RELOCALIZED_WITHIN`] frames. Its RAM and what it cost are budgets (`boot.*` in
+/// `memory-budget.md`, checked by the budgets step).
 fn firmware_power_cycle() -> Result<()> {
-    let first = ci_out("firmware-save-map");
-    let save = BoardMaps { save: true, ..Default::default() };
-    seven_scenes_on_the_board(Some(FIRMWARE_SAVE_FRAMES), first.clone(), save)?;
-    let second = ci_out("firmware-boot-saved-map");
-    let boot = BoardMaps { boot_from: Some(first), localize: true, save: false };
-    seven_scenes_on_the_board(Some(FIRMWARE_LOCALIZE_FRAMES), second.clone(), boot)?;
-    let capture = ferroslam_sim::serial::decode_capture(&std::fs::read(second.join("uart.bin"))?);
-    let first_relocalized = capture
-        .poses()
-        .position(|p| p.flags.contains(ferroslam_core::wire::PoseFlags::RELOCALIZED));
-    let first = match first_relocalized {
+    let second = firmware_boot_dir();
+    board_runs::power_cycle(&ci_out("firmware-save-map"), &second)?;
+    let run = crate::cost::FirmwareRun::read(&second.join("cost.json"))?;
+    let boot = BootCost::read(&second)?
+        .ok_or_else(|| anyhow::anyhow!("firmware, second boot: its store held no map"))?;
+    let first = match boot.first_relocalized {
         Some(i) if i < FIRST_RELOCALIZED_WITHIN => i,
         other => bail!(
             "firmware, second boot: first relocalized frame {other:?}, wanted within the first \
              {FIRST_RELOCALIZED_WITHIN}"
         ),
     };
-    let cost: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(second.join("cost.json"))?)?;
-    // Boot cost: the store's mount and index (the firmware's log), then the pipeline of every
-    // frame up to the first relocalized one (frame acquisition through semihosting left out).
-    let log = std::fs::read_to_string(second.join("firmware.log"))?;
-    let mount = log
-        .lines()
-        .find_map(|l| l.split("mounted and indexed in ").nth(1))
-        .and_then(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
-        .ok_or_else(|| anyhow::anyhow!("the second boot's log has no mount figure"))?;
-    let frames: u64 = (0..=first)
-        .map(|i| cost["per_frame"][i]["pipeline_instructions"].as_u64().unwrap_or(0))
-        .sum();
     eprintln!(
-        "firmware, second boot: relocalized in the saved map at its frame {first}; boot to that \
-         pose: store mounted and indexed in {:.2} M instructions + {:.2} M of pipeline = {:.2} M",
-        mount as f64 / 1e6,
-        frames as f64 / 1e6,
-        (mount + frames) as f64 / 1e6
+        "firmware, second boot: {} keyframes held, relocalized in the saved map at its frame \
+         {first}; boot to that pose: {:.2} M instructions (store mounted and indexed in {:.2} M)",
+        boot.held,
+        boot.insn_to_first_pose(&run).unwrap_or(0) as f64 / 1e6,
+        boot.mount as f64 / 1e6,
     );
-    let ram = |k: &str| cost["firmware"][k].as_u64().unwrap_or(u64::MAX);
-    let total = ram("static_ram_bytes").saturating_add(ram("stack_peak_bytes"));
-    let doc = std::fs::read_to_string(root().join("memory-budget.md"))?;
-    let bar = crate::budget_doc::parse_block(&doc)?
-        .into_iter()
-        .find(|b| b.key == "qvga.ram_total_bytes")
-        .map(|b| b.bar)
-        .ok_or_else(|| anyhow::anyhow!("memory-budget.md has no qvga.ram_total_bytes"))?;
-    eprintln!("firmware, second boot: static RAM + peak stack {total} B (bar {bar} B)");
-    if total > bar {
-        bail!("firmware, second boot: static RAM + peak stack {total} B over the bar {bar} B");
-    }
     Ok(())
 }
 
-/// The firmware replay of 7-Scenes (at most [`FIRMWARE_REPLAY_FRAMES`], in the order `frames`
-/// gives, or the recording's) into `out`, compared with the host's, with `maps` saved or booted
-/// from.
-fn seven_scenes_on_the_board(frames: Option<&str>, out: PathBuf, maps: BoardMaps) -> Result<()> {
-    let opts = crate::replay::ReplayOptions {
-        dataset: root().join(SEVEN_SCENES),
-        calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
-        max_frames: FIRMWARE_REPLAY_FRAMES,
-        frames: frames.map(str::parse).transpose()?,
-        out,
-        qemu_args: Vec::new(),
-        maps,
-    };
-    crate::replay::run(&root(), &opts)
-}
-
-/// The frames of 7-Scenes the firmware's jump-back plays: the camera carried back 420 frames to
-/// a place the board's map has retired (the host relocalizes at frame 521).
-const FIRMWARE_JUMP_BACK: &str = "0-520,100-130";
-
-/// The firmware on 7-Scenes played [`FIRMWARE_JUMP_BACK`]: every pose bit-identical to the host
-/// replay's (the relocalized frame's flag included), and the board's status counting at least one
-/// relocalization, from its flash store.
+/// The firmware on 7-Scenes played [`board_runs::JUMP_BACK`]: every pose bit-identical to the
+/// host replay's (the relocalized frame's flag included), and the board's status counting at
+/// least one relocalization, from its flash store.
 fn firmware_jump_back() -> Result<()> {
-    let out = ci_out("firmware-replay-jump-back");
-    seven_scenes_on_the_board(Some(FIRMWARE_JUMP_BACK), out.clone(), BoardMaps::default())?;
+    let out = firmware_jump_back_dir();
+    board_runs::jump_back(&out)?;
     let relocalizations =
         crate::cost::FirmwareRun::read(&out.join("cost.json"))?.status.relocalizations;
+    let frames = board_runs::JUMP_BACK;
     eprintln!(
-        "firmware, 7-Scenes --frames {FIRMWARE_JUMP_BACK}: {relocalizations} relocalization(s) on the board"
+        "firmware, 7-Scenes --frames {frames}: {relocalizations} relocalization(s) on the board"
     );
-    // Half a gigabyte of frames, not needed again.
-    let _ = std::fs::remove_file(out.join("frames.fsrs"));
     if relocalizations == 0 {
-        bail!("firmware, 7-Scenes --frames {FIRMWARE_JUMP_BACK}: the board never relocalized");
+        bail!("firmware, 7-Scenes --frames {frames}: the board never relocalized");
     }
     Ok(())
 }
@@ -280,12 +224,26 @@ fn fast_demo_replay_dir() -> PathBuf {
     ci_out("firmware-replay-fast-demo")
 }
 
+/// Where CI's firmware jump-back writes.
+fn firmware_jump_back_dir() -> PathBuf {
+    ci_out("firmware-replay-jump-back")
+}
+
+/// Where CI's second boot (the power cycle's) writes.
+fn firmware_boot_dir() -> PathBuf {
+    ci_out("firmware-boot-saved-map")
+}
+
 /// The budgets of `memory-budget.md` on the firmware replay's `cost.json`, without a second QEMU
 /// run; the figures as JSON in `target/ci/budgets.json`.
 fn budgets() -> Result<()> {
     let opts = crate::budgets::Options {
         from: Some(firmware_replay_dir()),
-        also: vec![(crate::fast_demo::NAME.to_owned(), fast_demo_replay_dir())],
+        also: vec![
+            (crate::fast_demo::NAME.to_owned(), fast_demo_replay_dir()),
+            (crate::budgets::JUMP_BACK_RUN.to_owned(), firmware_jump_back_dir()),
+            (crate::budgets::BOOT_RUN.to_owned(), firmware_boot_dir()),
+        ],
         json: Some(ci_out("budgets.json")),
         ..crate::budgets::Options::new(&root())
     };

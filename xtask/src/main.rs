@@ -56,6 +56,7 @@
 //! bottom.
 
 mod bench;
+mod board_runs;
 mod budget_doc;
 mod budget_figures;
 mod budget_tables;
