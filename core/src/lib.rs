@@ -15,7 +15,7 @@
 //!   long-term store, relocalization of a lost frame in a remembered place, verified by 3D-3D
 //!   RANSAC, and loops that bring a map restarted off the known one back onto it (drift
 //!   correction through the segment graph is to come); saved to and loaded from a map file.
-//! - *`ar`* (to come, beside `backend`): planes detected on depth and anchors that follow them.
+//! - [`ar`] (beside `backend`): planes detected on depth (anchors that follow them are to come).
 //! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
 //!   segmented global bundle adjustment, in bounded steps ([`backend::SolveJob`]).
 //! - [`tracking`]: the frame-to-map front end: the local map of tracked landmarks, the guide and
@@ -59,6 +59,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod ar;
 pub mod backend;
 pub mod config;
 pub mod features;

@@ -147,6 +147,15 @@ pub fn core_structures() -> Vec<Structure> {
             "backend::BoardBackend",
             "the BA workspace + the window and segment bookkeeping",
         ),
+        row::<ferroslam_core::ar::PlaneDetector>(
+            "ar::PlaneDetector",
+            format!(
+                "not on the board yet: {} x {} cells (moments and normal each), the seeds' order \
+                 and the growing's queue",
+                ferroslam_core::ar::PLANE_GRID.0,
+                ferroslam_core::ar::PLANE_GRID.1
+            ),
+        ),
         row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end"),
         row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
         row::<HostMap>(

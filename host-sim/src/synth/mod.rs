@@ -50,7 +50,7 @@ mod tum_folder;
 use std::path::PathBuf;
 
 use ferroslam_core::image::ImageError;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::trajectory::{StampedPose, Trajectory};
 
@@ -278,6 +278,20 @@ impl SynthIntrinsics {
     }
 }
 
+/// A planar face of the room seen in a frame ([`SyntheticSequence::visible_planes`]): the points
+/// `p` of the camera's frame with `normal_c . p + offset_m = 0`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisiblePlane {
+    /// Which face: `floor`, `north wall`, `box 2 face 5`, ...
+    pub name: String,
+    /// Its share of the frame.
+    pub fraction: f64,
+    /// Unit normal in the camera's frame, toward the camera.
+    pub normal_c: Vector3<f64>,
+    /// The camera's distance to the plane, metres.
+    pub offset_m: f64,
+}
+
 /// One rendered frame (depth scale [`DEPTH_SCALE`], timestamps `index / 30` s).
 pub type SynthFrame = crate::frame::OwnedFrame;
 
@@ -378,6 +392,56 @@ impl SyntheticSequence {
         frame.height = self.opts.height;
         frame.depth_scale = DEPTH_SCALE as f32;
         render::render_frame(self, index, frame)
+    }
+
+    /// The planar faces frame `index` sees within `max_depth_m` (the room's walls, floor and
+    /// ceiling, the boxes' faces; not the spheres), largest first: one ray every `step` pixels (at
+    /// least 1), each face with the share of those rays that hit it first no deeper than
+    /// `max_depth_m` (a sensor's range), and its plane in the camera's frame. The ground truth of
+    /// plane detection.
+    pub fn visible_planes(&self, index: usize, step: usize, max_depth_m: f64) -> Vec<VisiblePlane> {
+        let Some(gt) = self.ground_truth(index) else { return Vec::new() };
+        let (t_wc, k, step) = (gt.t_wc, self.intrinsics, step.max(1));
+        let r_cw = t_wc.rotation.inverse();
+        let origin = Point3::from(t_wc.translation.vector);
+        let mut planes: Vec<(face::FaceId, VisiblePlane)> = Vec::new();
+        let mut rays = 0usize;
+        for y in (0..k.height).step_by(step) {
+            for x in (0..k.width).step_by(step) {
+                rays += 1;
+                let dir_c = k.back_project(x as f64, y as f64, 1.0).coords;
+                let Some(hit) = self.scene.cast(&origin, &(t_wc.rotation * dir_c), u32::MAX) else {
+                    continue;
+                };
+                if matches!(hit.face, face::FaceId::Sphere(_)) || hit.t > max_depth_m {
+                    continue;
+                }
+                if let Some((_, p)) = planes.iter_mut().find(|(f, _)| *f == hit.face) {
+                    p.fraction += 1.0;
+                    continue;
+                }
+                let normal_c = r_cw * hit.normal;
+                let p_c = dir_c * hit.t;
+                let name = match hit.face {
+                    face::FaceId::Room(f) => {
+                        ["west wall", "east wall", "south wall", "north wall", "floor", "ceiling"]
+                            .get(usize::from(f))
+                            .map_or_else(|| format!("room face {f}"), |n| (*n).to_owned())
+                    }
+                    face::FaceId::Box { index, face } => format!("box {index} face {face}"),
+                    face::FaceId::Sphere(i) => format!("sphere {i}"),
+                };
+                let plane =
+                    VisiblePlane { name, fraction: 1.0, normal_c, offset_m: -normal_c.dot(&p_c) };
+                planes.push((hit.face, plane));
+            }
+        }
+        let mut planes: Vec<VisiblePlane> = planes.into_iter().map(|(_, p)| p).collect();
+        for p in &mut planes {
+            p.fraction /= rays.max(1) as f64;
+        }
+        planes.sort_by(|a, b| b.fraction.total_cmp(&a.fraction));
+        planes
     }
 
     /// A [`ferroslam_core::frame::FrameSource`] that renders the frames in order.

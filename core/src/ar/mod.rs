@@ -1,0 +1,23 @@
+//! Augmented reality: planes detected on depth, in the camera's frame and then the world's, for
+//! anchoring virtual objects (the paper's last experiment).
+//!
+//! - [`PlaneDetector`]: one frame's planes from its depth image, by a fixed grid of cells (each
+//!   fitted with a plane, kept when flat within the sensor's depth noise) grown into regions of
+//!   neighbouring cells that agree, each refitted on all its cells' points (a cell-grid method
+//!   in the spirit of PEAC and CAPE: no per-pixel work after the fit, fixed memory, a bounded
+//!   cost of one pass over the sampled pixels plus one over the cells).
+//! - [`Plane`]: a plane's normal, offset, centroid and support; [`Plane::transformed`] moves it
+//!   into the world frame with the camera's pose.
+//!
+//! Anchors, planes kept in the map (merged when seen again, moved by loop corrections, saved
+//! with it) and the firmware's side are to come (issue 49).
+
+mod eigen;
+mod planes;
+
+pub use planes::{
+    FramePlanes, MAX_FRAME_PLANES, PLANE_GRID, Plane, PlaneDetector, PlaneError, PlaneParams,
+};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,195 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+extern crate std;
+
+use heapless::Vec;
+use nalgebra::{Point3, UnitQuaternion, Vector3};
+
+use super::eigen::smallest_eigenvector;
+use super::*;
+use crate::geometry::{PinholeCamera, Pose};
+use crate::image::{DepthView, ImageView};
+use crate::test_rng::TestRng;
+
+/// A QVGA camera.
+fn cam() -> PinholeCamera {
+    PinholeCamera::new(262.5, 262.5, 159.5, 119.5, 320, 240).unwrap()
+}
+
+/// A plane `n . p + d = 0` in the camera's frame.
+#[derive(Clone, Copy)]
+struct TruePlane {
+    n: Vector3<f32>,
+    d: f32,
+}
+
+/// Depth in millimetres of the nearest of `planes` along each pixel's ray (0 where none is in
+/// front), with Gaussian-like noise of `noise_m` metres.
+fn render(
+    cam: &PinholeCamera,
+    planes: &[TruePlane],
+    noise_m: f32,
+    seed: u64,
+) -> std::vec::Vec<u16> {
+    let mut rng = TestRng::new(seed);
+    let mut depth = std::vec![0u16; cam.width() * cam.height()];
+    for y in 0..cam.height() {
+        for x in 0..cam.width() {
+            let ray = cam.back_project(x as f32, y as f32, 1.0).coords;
+            let z = planes
+                .iter()
+                .filter_map(|p| {
+                    let along = p.n.dot(&ray);
+                    let t = -p.d / along;
+                    (along != 0.0 && t > 0.0).then_some(t)
+                })
+                .fold(f32::INFINITY, f32::min);
+            if z.is_finite() {
+                // The sum of four uniforms: close enough to a Gaussian of that deviation.
+                let u: f32 = (0..4).map(|_| rng.unit_f32() - 0.5).sum();
+                let z = z + noise_m * u * 3.0_f32.sqrt();
+                depth[y * cam.width() + x] = (z * 1000.0).round().clamp(0.0, 65535.0) as u16;
+            }
+        }
+    }
+    depth
+}
+
+fn detect(cam: &PinholeCamera, depth: &[u16]) -> Vec<Plane, MAX_FRAME_PLANES> {
+    let view = DepthView::new(ImageView::packed(depth, cam.width(), cam.height()).unwrap(), 1000.0)
+        .unwrap();
+    let mut detector = std::boxed::Box::new(PlaneDetector::new());
+    let mut planes = Vec::new();
+    detector.detect(&view, cam, &PlaneParams::DEFAULT, &mut planes).unwrap();
+    planes
+}
+
+/// Degrees between two unit normals.
+fn angle_deg(a: &Vector3<f32>, b: &Vector3<f32>) -> f32 {
+    libm::acosf(a.dot(b).clamp(-1.0, 1.0)).to_degrees()
+}
+
+/// A camera 1.2 m above a floor, looking ahead and 30 degrees down, a wall 3 m ahead: camera
+/// `y` points down, `z` ahead.
+fn floor_and_wall() -> [TruePlane; 2] {
+    let pitch = 30.0f32.to_radians();
+    // The floor's normal (up) in the camera's frame, the camera 1.2 m above it.
+    let up = Vector3::new(0.0, -pitch.cos(), -pitch.sin());
+    // The wall faces the camera: its normal is back toward it, horizontal.
+    let back = Vector3::new(0.0, pitch.sin(), -pitch.cos());
+    [TruePlane { n: up, d: 1.2 }, TruePlane { n: back, d: 3.0 }]
+}
+
+#[test]
+fn the_floor_and_a_wall_are_found_to_a_fraction_of_a_degree_and_a_millimetre() {
+    let cam = cam();
+    let truth = floor_and_wall();
+    for (noise_m, max_deg, max_m) in [(0.0, 0.1, 0.001), (0.01, 0.5, 0.005)] {
+        let planes = detect(&cam, &render(&cam, &truth, noise_m, 7));
+        assert_eq!(planes.len(), 2, "noise {noise_m}: {planes:?}");
+        for t in &truth {
+            let found = planes
+                .iter()
+                .find(|p| angle_deg(&p.normal(), &t.n) < 5.0)
+                .unwrap_or_else(|| panic!("noise {noise_m}: no plane near {:?}", t.n));
+            assert!(angle_deg(&found.normal(), &t.n) < max_deg, "{found:?}");
+            assert!((found.offset_m - t.d).abs() < max_m, "{found:?} against {}", t.d);
+            assert!(found.frame_fraction() > 0.2, "{found:?}");
+        }
+        assert!(planes.windows(2).all(|w| w[0].cells >= w[1].cells), "largest first");
+    }
+}
+
+#[test]
+fn parallel_surfaces_a_box_height_apart_stay_two_planes() {
+    let cam = cam();
+    // A floor seen from straight above 2 m up, and a box top 0.3 m above it filling the middle.
+    let floor = TruePlane { n: Vector3::new(0.0, 0.0, -1.0), d: 2.0 };
+    let mut depth = render(&cam, &[floor], 0.0, 1);
+    for y in 60..180 {
+        for x in 80..240 {
+            depth[y * cam.width() + x] = 1700;
+        }
+    }
+    let planes = detect(&cam, &depth);
+    let mut offsets: std::vec::Vec<f32> = planes.iter().map(|p| p.offset_m).collect();
+    offsets.sort_by(f32::total_cmp);
+    assert_eq!(offsets.len(), 2, "{planes:?}");
+    assert!((offsets[0] - 1.7).abs() < 0.002 && (offsets[1] - 2.0).abs() < 0.002, "{offsets:?}");
+}
+
+#[test]
+fn no_depth_no_curved_surface_no_planes_and_bad_input_is_an_error() {
+    let cam = cam();
+    assert!(detect(&cam, &std::vec![0u16; 320 * 240]).is_empty(), "no depth");
+    // A ball of radius 0.25 m centred 0.8 m ahead (its nearest point 0.55 m away): a patch of it
+    // three cells wide is 5 mm from flat.
+    let mut sphere = std::vec![0u16; 320 * 240];
+    for y in 0..240 {
+        for x in 0..320 {
+            let r = cam.back_project(x as f32, y as f32, 1.0).coords.normalize();
+            // Nearest root of |t r - c|^2 = R^2 with c = (0, 0, 0.8).
+            let b = 0.8 * r.z;
+            let disc = b * b - (0.64 - 0.0625);
+            if disc >= 0.0 {
+                sphere[y * 320 + x] = ((b - disc.sqrt()) * r.z * 1000.0).round() as u16;
+            }
+        }
+    }
+    let planes = detect(&cam, &sphere);
+    assert!(planes.iter().all(|p| p.frame_fraction() < 0.05), "{planes:?}");
+    let depth = std::vec![1000u16; 160 * 120];
+    let view = DepthView::new(ImageView::packed(&depth, 160, 120).unwrap(), 1000.0).unwrap();
+    let mut detector = std::boxed::Box::new(PlaneDetector::new());
+    let mut planes = Vec::new();
+    let r = detector.detect(&view, &cam, &PlaneParams::DEFAULT, &mut planes);
+    assert_eq!(r, Err(PlaneError::SizeMismatch));
+    let tiny = PinholeCamera::new(10.0, 10.0, 4.5, 4.5, 10, 10).unwrap();
+    let view = DepthView::new(ImageView::packed(&depth[..100], 10, 10).unwrap(), 1000.0).unwrap();
+    let r = detector.detect(&view, &tiny, &PlaneParams::DEFAULT, &mut planes);
+    assert_eq!(r, Err(PlaneError::TooSmall));
+    let bad = PlaneParams { max_normal_angle_rad: f32::NAN, ..PlaneParams::DEFAULT };
+    let view = DepthView::new(ImageView::packed(&depth, 160, 120).unwrap(), 1000.0).unwrap();
+    assert_eq!(detector.detect(&view, &cam, &bad, &mut planes), Err(PlaneError::InvalidParams));
+    assert!(planes.is_empty());
+}
+
+#[test]
+fn a_plane_moved_into_the_world_holds_the_world_points() {
+    let plane = Plane {
+        normal: [0.0, -0.6, -0.8],
+        offset_m: 2.0,
+        centroid: [0.1, 1.2, 1.6],
+        rms_m: 0.001,
+        cells: 30,
+        samples: 1920,
+    };
+    let t_wc = Pose::from_parts(
+        nalgebra::Translation3::new(0.5, -0.2, 1.0),
+        UnitQuaternion::from_euler_angles(0.1, -0.3, 0.7),
+    );
+    let world = plane.transformed(&t_wc);
+    // Points on the camera-frame plane are on the world plane once moved.
+    let n = plane.normal();
+    let a = n.cross(&Vector3::x()).normalize();
+    let b = n.cross(&a);
+    for (u, v) in [(0.0, 0.0), (1.0, 0.0), (-0.5, 2.0)] {
+        let p = Point3::from(-plane.offset_m * n + a * u + b * v);
+        assert!(plane.distance(&p).abs() < 1e-5);
+        assert!(world.distance(&(t_wc * p)).abs() < 1e-5);
+    }
+    assert!((world.normal().norm() - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn the_smallest_eigenvector_of_a_rotated_diagonal_matrix() {
+    let r = UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1).to_rotation_matrix();
+    let d = nalgebra::Matrix3::from_diagonal(&Vector3::new(4.0, 1e-4, 2.0));
+    let m = r.matrix() * d * r.matrix().transpose();
+    let a = [0, 1, 2].map(|i| [0, 1, 2].map(|j| m[(i, j)]));
+    let (e, values) = smallest_eigenvector(a).unwrap();
+    let expected = r.matrix().column(1).into_owned();
+    assert!(Vector3::from(e).dot(&expected).abs() > 1.0 - 1e-6, "{e:?}");
+    assert!((values[0] - 1e-4).abs() < 1e-5 && (values[2] - 4.0).abs() < 1e-5, "{values:?}");
+    assert!(smallest_eigenvector([[f32::NAN, 0.0, 0.0], [0.0; 3], [0.0; 3]]).is_none());
+}
