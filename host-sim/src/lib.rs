@@ -27,6 +27,7 @@ pub mod eval;
 pub mod faults;
 pub mod frame;
 pub mod map_file;
+pub mod plane_truth;
 pub mod plot;
 pub mod replay;
 pub mod report;

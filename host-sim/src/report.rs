@@ -12,8 +12,8 @@ use crate::dataset::{SkippedFrame, Stream};
 use crate::eval::{self, EvalReport};
 use crate::plot;
 use crate::run::{
-    BackendReport, DataPathRun, FrameStats, PlacesReport, TrackMode, TrackedFrame, TrackingRun,
-    median,
+    BackendReport, DataPathRun, FrameStats, PlacesReport, PlanesReport, TrackMode, TrackedFrame,
+    TrackingRun, median,
 };
 use crate::trajectory::Trajectory;
 
@@ -109,6 +109,13 @@ pub struct Report {
     /// The back end's figures (SLAM mode).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub backend: Option<BackendReport>,
+    /// The world's planes from the keyframes' depth, in the trajectory's world frame (SLAM
+    /// mode).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub planes: Option<PlanesReport>,
+    /// The planes against the room's (the demo: its renderer knows the room).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plane_accuracy: Option<crate::plane_truth::PlaneAccuracy>,
     /// Per-frame front-end figures (odometry and SLAM modes).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub odometry: Vec<TrackedFrame>,
@@ -210,6 +217,8 @@ impl Report {
             per_frame: run.per_frame.clone(),
             ate_online_rmse_m: None,
             backend: None,
+            planes: None,
+            plane_accuracy: None,
             odometry: Vec::new(),
         }
     }
@@ -249,6 +258,8 @@ impl Report {
             output_sha256: Some(sha256),
             ate_online_rmse_m: online_ate,
             backend: run.backend.clone(),
+            planes: run.planes.clone(),
+            plane_accuracy: None,
             odometry: run.per_frame.clone(),
             ..Self::data_path(&run.data, profile, skipped, note)
         }
@@ -383,7 +394,7 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
     };
     format!(
         "{} ({}): {} frames: {} tracked, {} relocalised, {} re-initialised, {} lost, {} before \
-         the first keyframe;{skipped} {} keyframes;{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} \
+         the first keyframe;{skipped} {} keyframes;{}{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} \
          ms median per frame in the core); core state {} bytes",
         report.mode,
         report.profile,
@@ -398,6 +409,19 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
             .loops
             .as_ref()
             .map_or(String::new(), |l| format!(" {} loops closed;", l.frames.len())),
+        report.planes.as_ref().map_or(String::new(), |p| {
+            let accuracy = report.plane_accuracy.as_ref().map_or(String::new(), |a| {
+                format!(
+                    " ({} of {} room faces over {:.0}% of a frame found, worst {:.2} deg, {:.1} mm)",
+                    a.found,
+                    a.found + a.missed,
+                    100.0 * a.min_fraction,
+                    a.normal_error_deg_max.unwrap_or(f64::NAN),
+                    1000.0 * a.offset_error_m_max.unwrap_or(f64::NAN)
+                )
+            });
+            format!(" {} planes{accuracy};", p.planes.len())
+        }),
         report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
         wall_s,
         report.host_cost.process_median / 1000.0,

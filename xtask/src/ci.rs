@@ -93,8 +93,18 @@ pub fn run_all() -> Result<()> {
     step("held-out TUM sequences (issue 4's 0.010 m bar), when present", || {
         crate::heldout::run(&[])
     })?;
-    step("demo", || {
-        cargo(&["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--out", "target/ci/demo"])
+    step("demo, and its planes against the room's (issue 49)", || {
+        cargo(&[
+            "run",
+            "--release",
+            "-p",
+            "ferroslam-sim",
+            "--",
+            "demo",
+            "--out",
+            "target/ci/demo",
+        ])?;
+        demo_planes(&ci_out("demo"))
     })?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
     Ok(())
@@ -108,6 +118,37 @@ const FUZZ_ITERATIONS: u64 = 350_000;
 
 /// Frames of each recording CI's soak runs (issue 50: 5,000 in CI, 100,000 by hand).
 const SOAK_FRAMES: usize = 5_000;
+
+/// Issue 49's plane bars on the demo: every face of the room covering more than a tenth of a
+/// frame is among the run's planes, its normal within a degree and its plane within a
+/// centimetre of where the run's plane was seen.
+const DEMO_PLANE_NORMAL_DEG: f64 = 1.0;
+const DEMO_PLANE_OFFSET_M: f64 = 0.01;
+
+/// Checks the demo's `report.json` in `dir` against [`DEMO_PLANE_NORMAL_DEG`] and
+/// [`DEMO_PLANE_OFFSET_M`].
+fn demo_planes(dir: &Path) -> Result<()> {
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let a = &report["plane_accuracy"];
+    let (found, missed) = (a["found"].as_u64(), a["missed"].as_u64());
+    let (deg, off) = (a["normal_error_deg_max"].as_f64(), a["offset_error_m_max"].as_f64());
+    eprintln!(
+        "demo planes: {found:?} room faces found, {missed:?} missed; worst normal {deg:?} deg, \
+         offset {off:?} m"
+    );
+    match (found, missed, deg, off) {
+        (Some(f), Some(0), Some(d), Some(o))
+            if f > 0 && d <= DEMO_PLANE_NORMAL_DEG && o <= DEMO_PLANE_OFFSET_M =>
+        {
+            Ok(())
+        }
+        _ => bail!(
+            "the demo's planes miss issue 49's bar (every face over 10% of a frame found, \
+             normal within {DEMO_PLANE_NORMAL_DEG} deg, offset within {DEMO_PLANE_OFFSET_M} m)"
+        ),
+    }
+}
 
 /// `path` as a command-line argument.
 fn path_arg(path: &Path) -> String {

@@ -558,6 +558,7 @@ mod tests {
             places: None,
             state_bytes: 0,
             backend: None,
+            planes: None,
         }
     }
 

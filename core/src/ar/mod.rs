@@ -8,13 +8,16 @@
 //!   cost of one pass over the sampled pixels plus one over the cells).
 //! - [`Plane`]: a plane's normal, offset, centroid and support; [`Plane::transformed`] moves it
 //!   into the world frame with the camera's pose.
+//! - [`PlaneMap`]: the world's planes, each keyframe's merged into the one it is the same
+//!   surface as. Built from the keyframes' final poses, it follows bundle adjustment and loops.
 //!
-//! Anchors, planes kept in the map (merged when seen again, moved by loop corrections, saved
-//! with it) and the firmware's side are to come (issue 49).
+//! Anchors, planes saved with the map and the firmware's side are to come (issue 49).
 
 mod eigen;
+mod plane_map;
 mod planes;
 
+pub use plane_map::{MAX_MAP_PLANES, MapPlane, Observed, PlaneMap, PlaneMergeParams};
 pub use planes::{
     FramePlanes, MAX_FRAME_PLANES, PLANE_GRID, Plane, PlaneDetector, PlaneError, PlaneParams,
 };

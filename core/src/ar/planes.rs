@@ -119,9 +119,9 @@ pub struct Plane {
     pub normal: [f32; 3],
     /// Metres: in the camera's frame, the camera's distance to the plane (positive).
     pub offset_m: f32,
-    /// The mean of its points, metres.
+    /// The mean of its points, metres, each cell's weighted by its depth's inverse variance.
     pub centroid: [f32; 3],
-    /// RMS distance of its points to it, metres.
+    /// RMS distance of its points to it, metres, weighted as the centroid.
     pub rms_m: f32,
     /// Grid cells it covers (its extent: [`Plane::frame_fraction`]).
     pub cells: u16,
@@ -154,41 +154,51 @@ impl Plane {
     }
 }
 
-/// Centred moments of a point set: count, mean and the scatter (sums of centred products),
-/// merged exactly by the parallel-axis rule so a region's fit never loses precision to large
-/// coordinates (Chan, Golub and LeVeque's pairwise update).
+/// Weighted centred moments of a point set: its count, the weights' sum, the weighted mean and
+/// scatter (sums of weighted centred products), merged exactly by the parallel-axis rule so a
+/// region's fit never loses precision to large coordinates (Chan, Golub and LeVeque's pairwise
+/// update). A cell's points share one weight, the inverse of its depth variance (`1 / z^4`,
+/// the sensor's `sigma_z = k z^2`): a region's fit leans on its near cells, whose depth is
+/// better, not on the far ones a grazing floor is mostly made of.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Moments {
-    n: f32,
+    count: f32,
+    weight: f32,
     mean: [f32; 3],
     /// `xx, xy, xz, yy, yz, zz`.
     scatter: [f32; 6],
 }
 
 impl Moments {
-    const EMPTY: Self = Self { n: 0.0, mean: [0.0; 3], scatter: [0.0; 6] };
+    const EMPTY: Self = Self { count: 0.0, weight: 0.0, mean: [0.0; 3], scatter: [0.0; 6] };
 
     /// The moments of `self` and `o` together.
     fn merged(&self, o: &Self) -> Self {
-        let n = self.n + o.n;
-        if n <= 0.0 {
+        let weight = self.weight + o.weight;
+        if weight <= 0.0 {
             return Self::EMPTY;
         }
         let d = [o.mean[0] - self.mean[0], o.mean[1] - self.mean[1], o.mean[2] - self.mean[2]];
-        let w = self.n * o.n / n;
-        let f = o.n / n;
+        let w = self.weight * o.weight / weight;
+        let f = o.weight / weight;
         let mean = [self.mean[0] + d[0] * f, self.mean[1] + d[1] * f, self.mean[2] + d[2] * f];
         let dd = [d[0] * d[0], d[0] * d[1], d[0] * d[2], d[1] * d[1], d[1] * d[2], d[2] * d[2]];
         let mut scatter = self.scatter;
         for ((s, &os), &p) in scatter.iter_mut().zip(&o.scatter).zip(&dd) {
             *s += os + p * w;
         }
-        Self { n, mean, scatter }
+        Self { count: self.count + o.count, weight, mean, scatter }
     }
 
-    /// The plane through the points: normal toward the camera (the origin), offset, RMS distance.
+    /// These moments with every point's weight multiplied by `by`.
+    fn weighted(&self, by: f32) -> Self {
+        Self { weight: self.weight * by, scatter: self.scatter.map(|s| s * by), ..*self }
+    }
+
+    /// The plane through the points: normal toward the camera (the origin), offset, weighted
+    /// RMS distance.
     fn fit(&self) -> Option<([f32; 3], f32, f32)> {
-        if self.n < 3.0 {
+        if self.count < 3.0 || self.weight <= 0.0 {
             return None;
         }
         let s = self.scatter;
@@ -198,7 +208,7 @@ impl Moments {
         let along = normal[0] * m[0] + normal[1] * m[1] + normal[2] * m[2];
         let normal = if along > 0.0 { normal.map(|c| -c) } else { normal };
         let offset = along.abs();
-        let rms = ferroslam_fpu::sqrtf(values[0].max(0.0) / self.n);
+        let rms = ferroslam_fpu::sqrtf(values[0].max(0.0) / self.weight);
         Some((normal, offset, rms))
     }
 }
@@ -224,8 +234,8 @@ impl Cell {
 /// and the region growing's queue, reused from frame to frame: 18,000 bytes (`memory-budget.md`); place it in a
 /// `static` or a box, not on the stack.
 ///
-/// Cost per frame: 2 x 64 depth samples back-projected per cell (two passes: the mean, then the
-/// centred scatter), one 3 x 3 eigen-decomposition per cell and one per cell a region takes.
+/// Cost per frame: 64 depth samples interpolated and back-projected per cell, two passes over
+/// them (the mean, then the centred scatter), one 3 x 3 eigen-decomposition per cell and one per cell a region takes.
 #[derive(Debug, Clone)]
 pub struct PlaneDetector {
     cells: [Cell; CELLS],
@@ -310,7 +320,7 @@ impl PlaneDetector {
                 rms_m,
                 cells: *cells,
                 // At most 64 samples a cell, 300 cells: exact.
-                samples: moments.n as u32,
+                samples: moments.count as u32,
             };
             let _ = planes.push(plane);
         }
@@ -332,10 +342,13 @@ impl PlaneDetector {
             for (j, p) in points.iter_mut().enumerate().take(sx * sy) {
                 let (a, b) = (j % sx, j / sx);
                 let (x, y) = (x0 + (2 * a + 1) * cw / (2 * sx), y0 + (2 * b + 1) * ch / (2 * sy));
+                // Interpolated at the pixel's centre: the depth may be coarser than the image
+                // (the board's), and its pixel's own centre is then up to half a pixel away.
+                let (u, v) = (x as f32, y as f32);
                 *p = depth
-                    .depth_m(x, y)
+                    .depth_at(u, v, params.max_relative_step)
                     .filter(|z| (zmin..=zmax).contains(z))
-                    .map(|z| cam.back_project(x as f32, y as f32, z));
+                    .map(|z| cam.back_project(u, v, z));
             }
             let points = &points[..sx * sy];
             let valid = points.iter().flatten().count();
@@ -361,8 +374,11 @@ impl PlaneDetector {
                     *s += q;
                 }
             }
-            cell.moments = Moments { n, mean, scatter };
-            let Some((normal, _, cell_rms)) = cell.moments.fit() else { continue };
+            let unweighted = Moments { count: n, weight: n, mean, scatter };
+            let Some((normal, _, cell_rms)) = unweighted.fit() else { continue };
+            // In metres: z is at least the sensor's minimum depth, so the weight is finite.
+            let z2 = mean[2] * mean[2];
+            cell.moments = unweighted.weighted(1.0 / (z2 * z2));
             let z = mean[2];
             cell.normal = normal;
             cell.flat = cell_rms <= params.flat_sigmas * k * z * z + params.flat_floor_m;
@@ -409,7 +425,7 @@ impl PlaneDetector {
                 }
                 let m = &cell.moments;
                 let z = m.mean[2];
-                let reach = params.join_sigmas * k * z * z / ferroslam_fpu::sqrtf(m.n)
+                let reach = params.join_sigmas * k * z * z / ferroslam_fpu::sqrtf(m.count)
                     + params.join_floor_m;
                 let apart = (dot(&plane.0, &m.mean) + plane.1).abs();
                 if dot(&cell.normal, &plane.0) < cos_max || apart > reach {
@@ -443,6 +459,7 @@ fn has_step(points: &[Option<Point3<f32>>], width: usize, max_relative: f32) -> 
     across || down
 }
 
-fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+/// The dot product of two 3-vectors held as arrays.
+pub(super) fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }

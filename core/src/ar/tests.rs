@@ -193,3 +193,67 @@ fn the_smallest_eigenvector_of_a_rotated_diagonal_matrix() {
     assert!((values[0] - 1e-4).abs() < 1e-5 && (values[2] - 4.0).abs() < 1e-5, "{values:?}");
     assert!(smallest_eigenvector([[f32::NAN, 0.0, 0.0], [0.0; 3], [0.0; 3]]).is_none());
 }
+
+/// A world plane `n . p + d = 0` through `centroid` with `samples` samples.
+fn world_plane(normal: [f32; 3], centroid: [f32; 3], samples: u32) -> Plane {
+    let n = Vector3::from(normal).normalize();
+    Plane {
+        normal: n.into(),
+        offset_m: -n.dot(&Vector3::from(centroid)),
+        centroid,
+        rms_m: 0.002,
+        cells: 20,
+        samples,
+    }
+}
+
+#[test]
+fn the_same_surface_seen_twice_is_one_plane_and_a_box_top_another() {
+    let p = PlaneMergeParams::DEFAULT;
+    let mut map = PlaneMap::new();
+    let floor = world_plane([0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 1000);
+    assert_eq!(map.observe(&floor, &p), Observed::Added(0));
+    // The floor again, a metre away, a centimetre high and tilted half a degree.
+    let tilt = 0.5f32.to_radians();
+    let again = world_plane([libm::sinf(tilt), 0.0, libm::cosf(tilt)], [1.0, 0.5, 0.01], 1000);
+    assert_eq!(map.observe(&again, &p), Observed::Merged(0));
+    // A box top 0.3 m up, and a wall: planes of their own.
+    assert_eq!(
+        map.observe(&world_plane([0.0, 0.0, 1.0], [0.5, 0.5, 0.3], 500), &p),
+        Observed::Added(1)
+    );
+    assert_eq!(
+        map.observe(&world_plane([1.0, 0.0, 0.0], [-3.0, 0.0, 1.0], 800), &p),
+        Observed::Added(2)
+    );
+    let kept = map.planes()[0];
+    assert_eq!(kept.observations, 2);
+    assert_eq!(kept.plane.samples, 2000);
+    // The centroids' mean, on the merged plane, the normals' mean a quarter degree off vertical.
+    assert_eq!(kept.plane.centroid, [0.5, 0.25, 0.005]);
+    assert!(kept.plane.distance(&Point3::from(kept.plane.centroid)).abs() < 1e-6, "{kept:?}");
+    let off = libm::acosf(kept.plane.normal[2]).to_degrees();
+    assert!((off - 0.25).abs() < 0.01, "{kept:?}");
+    assert!((kept.plane.normal().norm() - 1.0).abs() < 1e-6);
+    // The same normal facing the other way (a plane's back) is another surface.
+    let under = world_plane([0.0, 0.0, -1.0], [0.0, 0.0, 0.0], 100);
+    assert_eq!(map.observe(&under, &p), Observed::Added(3));
+}
+
+#[test]
+fn a_full_plane_map_keeps_the_best_supported_planes() {
+    let p = PlaneMergeParams::DEFAULT;
+    let mut map = PlaneMap::new();
+    for i in 0..MAX_MAP_PLANES {
+        // Parallel planes 10 cm apart, samples 100, 200, ...
+        let plane = world_plane([0.0, 0.0, 1.0], [0.0, 0.0, 0.1 * i as f32], 100 * (i as u32 + 1));
+        assert_eq!(map.observe(&plane, &p), Observed::Added(i));
+    }
+    let weak = world_plane([0.0, 1.0, 0.0], [0.0, 5.0, 0.0], 50);
+    assert_eq!(map.observe(&weak, &p), Observed::Dropped);
+    assert_eq!(map.dropped(), 1);
+    let strong = world_plane([0.0, 1.0, 0.0], [0.0, 5.0, 0.0], 150);
+    assert_eq!(map.observe(&strong, &p), Observed::Added(0), "in place of the 100-sample plane");
+    assert_eq!(map.planes().len(), MAX_MAP_PLANES);
+    assert_eq!(map.planes()[0].plane.samples, 150);
+}

@@ -17,6 +17,7 @@
 
 pub mod data_path;
 mod odometry;
+mod planes;
 pub mod result;
 pub mod slam;
 pub mod source;
@@ -41,7 +42,9 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
 }
 
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
-pub use result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun};
+pub use result::{
+    BackendReport, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
+};
 pub use slam::{MapScale, Schedule};
 pub use source::{ProfileSource, ProfileSourceError};
 

@@ -61,6 +61,7 @@ where
         initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<F>() + std::mem::size_of::<BoardMap>(),
         backend: None,
+        planes: None,
     })
 }
 #[cfg(test)]

@@ -5,6 +5,7 @@ use ferroslam_core::tracking::{FrameResult, FrontendState, GuideStage};
 use serde::Serialize;
 
 use super::data_path::DataPathRun;
+pub use super::planes::{PlaneReport, PlanesReport};
 use crate::trajectory::Trajectory;
 
 /// What the odometry front end made of one frame.
@@ -145,6 +146,8 @@ pub struct TrackingRun {
     pub state_bytes: usize,
     /// The back end's figures (SLAM mode).
     pub backend: Option<BackendReport>,
+    /// The world's planes, from the keyframes' depth (SLAM mode).
+    pub planes: Option<PlanesReport>,
 }
 
 /// The per-frame figures of a front-end result.

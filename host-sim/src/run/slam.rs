@@ -11,6 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
 
+use ferroslam_core::ar::PlaneParams;
 use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
 use ferroslam_core::config::capacity::BOARD_STORE_KEYFRAMES;
 use ferroslam_core::frame::{FrameSource, RgbdFrame};
@@ -26,6 +27,7 @@ use ferroslam_core::tracking::{
 
 use super::MapFiles;
 use super::data_path::{Progress, drive};
+use super::planes::KeyframePlanes;
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
 
@@ -380,6 +382,8 @@ where
     load_map(&mut memory, maps)?;
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
+    let mut planes =
+        KeyframePlanes::new(PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT });
     let mut stepper = Stepper {
         slam: &mut slam,
         places: &mut memory,
@@ -392,6 +396,9 @@ where
     let data = drive(source, progress, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
+        if let Some(kf) = r.keyframe {
+            planes.observe(kf, frame, cam).map_err(|e| anyhow!("plane detection: {e:?}"))?;
+        }
         if r.state == FrontendState::Initializing {
             // No pose before the first keyframe, which defines the world frame.
             return Ok(());
@@ -450,6 +457,7 @@ where
         initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
+        planes: Some(planes.report(&record.keyframe_pose)),
     })
 }
 

@@ -1,0 +1,159 @@
+//! The planes of a run in the world frame ([`PlaneMap`]): each keyframe's planes, moved into the
+//! world by the keyframe's pose, merged with a plane already kept when they are the same surface.
+
+use heapless::Vec;
+use nalgebra::Point3;
+
+use super::planes::{Plane, dot};
+
+/// Planes a [`PlaneMap`] keeps.
+pub const MAX_MAP_PLANES: usize = 32;
+
+/// When two planes are one surface. Metres and radians.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PlaneMergeParams {
+    /// Their normals are within this angle (and point the same way). Default 5 degrees: a
+    /// plane's normal is good to a fraction of a degree, a keyframe's pose to about one.
+    pub max_normal_angle_rad: f32,
+    /// Each one's centroid is within this distance of the other plane. Default 0.03 m: a few
+    /// centimetres of drift between keyframes, well under a box's height over the floor.
+    pub max_distance_m: f32,
+}
+
+impl PlaneMergeParams {
+    /// The defaults, documented per field.
+    pub const DEFAULT: Self =
+        Self { max_normal_angle_rad: 5.0 * core::f32::consts::PI / 180.0, max_distance_m: 0.03 };
+}
+
+impl Default for PlaneMergeParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// A plane of the world and how it was seen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MapPlane {
+    /// The plane, in the world frame: the observations' normals and centroids averaged,
+    /// weighted by their samples; `cells` the most any observation covered (its largest share
+    /// of a frame), `samples` their sum.
+    pub plane: Plane,
+    /// Observations merged into it.
+    pub observations: u16,
+}
+
+/// What a [`PlaneMap::observe`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Observed {
+    /// Merged into the kept plane at this index.
+    Merged(usize),
+    /// Kept as a new plane at this index (in place of the least supported one, when full).
+    Added(usize),
+    /// Not kept: the map is full of planes better supported than it.
+    Dropped,
+}
+
+/// The world's planes, at most [`MAX_MAP_PLANES`] (about 1.5 KiB). When full, a new plane takes
+/// the place of the one with the fewest samples if it has more; otherwise it is dropped (and
+/// counted): the best supported surfaces are the ones anchors go on.
+#[derive(Debug, Clone, Default)]
+pub struct PlaneMap {
+    planes: Vec<MapPlane, MAX_MAP_PLANES>,
+    dropped: u32,
+}
+
+impl PlaneMap {
+    /// An empty map (`const`, for a `static`).
+    pub const fn new() -> Self {
+        Self { planes: Vec::new(), dropped: 0 }
+    }
+
+    /// The planes kept, in the order they were added.
+    pub fn planes(&self) -> &[MapPlane] {
+        &self.planes
+    }
+
+    /// Observations dropped because the map was full.
+    pub fn dropped(&self) -> u32 {
+        self.dropped
+    }
+
+    /// Forgets every plane.
+    pub fn clear(&mut self) {
+        self.planes.clear();
+        self.dropped = 0;
+    }
+
+    /// Takes `plane` (in the world frame): merged into the kept plane it is the same surface as
+    /// (the closest, by centroid distance), or kept as a new one.
+    pub fn observe(&mut self, plane: &Plane, params: &PlaneMergeParams) -> Observed {
+        let cos_max = libm::cosf(params.max_normal_angle_rad);
+        let same = self
+            .planes
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| {
+                let kept = &m.plane;
+                dot(&kept.normal, &plane.normal) >= cos_max
+                    && distance(kept, &plane.centroid).abs() <= params.max_distance_m
+                    && distance(plane, &kept.centroid).abs() <= params.max_distance_m
+            })
+            .min_by(|(_, a), (_, b)| {
+                let d = |m: &MapPlane| distance(&m.plane, &plane.centroid).abs();
+                d(a).total_cmp(&d(b))
+            })
+            .map(|(i, _)| i);
+        if let Some(i) = same {
+            if let Some(m) = self.planes.get_mut(i) {
+                m.plane = merged(&m.plane, plane);
+                m.observations = m.observations.saturating_add(1);
+            }
+            return Observed::Merged(i);
+        }
+        let new = MapPlane { plane: *plane, observations: 1 };
+        if self.planes.push(new).is_ok() {
+            return Observed::Added(self.planes.len() - 1);
+        }
+        let weakest = self.planes.iter().enumerate().min_by_key(|(_, m)| m.plane.samples);
+        match weakest {
+            Some((i, m)) if m.plane.samples < plane.samples => {
+                if let Some(slot) = self.planes.get_mut(i) {
+                    *slot = new;
+                }
+                Observed::Added(i)
+            }
+            _ => {
+                self.dropped = self.dropped.saturating_add(1);
+                Observed::Dropped
+            }
+        }
+    }
+}
+
+/// `a` and `b` as one plane: normals and centroids averaged by samples, the normal renormalized.
+fn merged(a: &Plane, b: &Plane) -> Plane {
+    // Counts are at most a few million: f32 weights are exact enough.
+    let (wa, wb) = (a.samples as f32, b.samples as f32);
+    let total = (wa + wb).max(1.0);
+    let n = [0, 1, 2].map(|k| (wa * a.normal[k] + wb * b.normal[k]) / total);
+    let norm = ferroslam_fpu::sqrtf(dot(&n, &n));
+    let normal = if norm > 0.0 { n.map(|c| c / norm) } else { a.normal };
+    let centroid = [0, 1, 2].map(|k| (wa * a.centroid[k] + wb * b.centroid[k]) / total);
+    let rms_m = ferroslam_fpu::sqrtf((wa * a.rms_m * a.rms_m + wb * b.rms_m * b.rms_m) / total);
+    Plane {
+        normal,
+        offset_m: -dot(&normal, &centroid),
+        centroid,
+        rms_m,
+        cells: a.cells.max(b.cells),
+        samples: a.samples.saturating_add(b.samples),
+    }
+}
+
+fn distance(plane: &Plane, p: &[f32; 3]) -> f32 {
+    plane.distance(&Point3::from(*p))
+}
