@@ -11,7 +11,9 @@
 //! - [`PlaneMap`]: the world's planes, each keyframe's merged into the one it is the same
 //!   surface as. Built from the keyframes' final poses, it follows bundle adjustment and loops.
 //!
-//! Anchors, planes saved with the map and the firmware's side are to come (issue 49).
+//! Why these choices and thresholds, and what they measured: docs/decisions.md, "Planes from a
+//! grid of cells on depth". Anchors, planes saved with the map and the firmware's side are to
+//! come (issue 49).
 
 mod eigen;
 mod plane_map;
