@@ -15,7 +15,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use crate::eval;
-use crate::plane_truth::{first_keyframe_alignment, plane_accuracy, true_planes};
+use crate::plane_truth::{ar_accuracy, first_keyframe_alignment, plane_accuracy, true_planes};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
 use crate::run::{self, ProfileSource, Progress, RunOptions, TrackMode};
@@ -40,6 +40,8 @@ pub struct DemoOptions {
     pub depth_level: Option<u8>,
     /// Whether to draw a progress bar on stderr (only ever drawn on a terminal).
     pub progress_bar: bool,
+    /// Place the paper's two objects and measure their pixel error (SLAM mode; `--ar`).
+    pub ar: bool,
 }
 
 impl DemoOptions {
@@ -52,6 +54,7 @@ impl DemoOptions {
             mode,
             depth_level: None,
             progress_bar: true,
+            ar: false,
         }
     }
 }
@@ -117,13 +120,20 @@ fn track(
         4,
         f64::from(SensorModel::DEFAULT.depth_max_m),
     );
+    // The ground truth the objects are judged on: the sequence itself (the source renders a
+    // copy).
+    let truth_sequence = options.ar.then(|| sequence.clone());
     let mut source = profile_source(sequence, options);
     let sensor = SensorModel {
         depth_noise_coeff_per_m: sensor_depth_noise(options.synth.depth_noise_k),
         ..SensorModel::DEFAULT
     };
-    let run_options =
-        RunOptions { sensor, progress_bar: options.progress_bar, ..RunOptions::new(profile, mode) };
+    let run_options = RunOptions {
+        sensor,
+        progress_bar: options.progress_bar,
+        ar: options.ar,
+        ..RunOptions::new(profile, mode)
+    };
     let run = run::track(&mut source, frames, &cam, &run_options)?;
     let wall_s = started.elapsed().as_secs_f64();
     let note = format!(
@@ -143,6 +153,10 @@ fn track(
     let t_gt_est = first_keyframe_alignment(&run.keyframes, gt);
     if let (Some(planes), Some(t_gt_est)) = (&run.planes, t_gt_est) {
         report.plane_accuracy = Some(plane_accuracy(&truth, planes, &t_gt_est, PLANE_MIN_FRACTION));
+        report.write(out)?;
+    }
+    if let (Some(ar), Some(sequence)) = (&run.ar, &truth_sequence) {
+        report.ar = Some(ar_accuracy(sequence, options.skip_frames, ar, &cam));
         report.write(out)?;
     }
     Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })

@@ -154,3 +154,110 @@ pub fn plane_accuracy(
         faces,
     }
 }
+
+/// Order statistics of pixel errors.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct PixelStats {
+    /// Median, pixels (numpy's: the mean of the middle two of an even count).
+    pub median: f64,
+    /// 95th percentile (nearest rank), pixels.
+    pub p95: f64,
+    /// Largest, pixels.
+    pub max: f64,
+    /// Errors counted.
+    pub count: usize,
+}
+
+impl PixelStats {
+    fn of(mut values: Vec<f64>) -> Self {
+        values.sort_by(f64::total_cmp);
+        let n = values.len();
+        if n == 0 {
+            return Self::default();
+        }
+        // Nearest rank: the smallest value with at least 95% of the values at or below it.
+        let rank = (0.95 * n as f64).ceil() as usize;
+        Self {
+            median: crate::eval::stats::median_of_sorted(&values).unwrap_or(f64::NAN),
+            p95: values[rank.clamp(1, n) - 1],
+            max: values[n - 1],
+            count: n,
+        }
+    }
+}
+
+/// How far from where they belong a run drew its objects (report.json `ar`, the demo with
+/// `--ar`): per frame from the placing one on, per object, the pixel the frame's output pose
+/// draws it at against the pixel the room's point under its placing pixel projects to with the
+/// frame's true pose (processing resolution; frames where that point is outside the image or
+/// behind the camera are not counted; occlusion is not modelled).
+#[derive(Debug, Clone, Serialize)]
+pub struct ArAccuracy {
+    /// The frame (0-based, as played) the objects were placed in.
+    pub frame: usize,
+    /// Objects placed.
+    pub objects: usize,
+    /// The objects' placing pixels.
+    pub anchors: Vec<crate::run::PlacedAnchor>,
+    /// Pixel error of every object in every frame counted.
+    pub error_px: PixelStats,
+    /// Frame-to-frame jitter: how much an object's error moved between consecutive frames, pixels.
+    pub jitter_px: PixelStats,
+}
+
+/// [`ArAccuracy`] of `ar`, a run of `sequence`'s frames from `skip_frames` on seen by `cam`.
+pub fn ar_accuracy(
+    sequence: &SyntheticSequence,
+    skip_frames: usize,
+    ar: &crate::run::ArRun,
+    cam: &ferroslam_core::geometry::PinholeCamera,
+) -> ArAccuracy {
+    let (fx, fy, cx, cy) =
+        (f64::from(cam.fx()), f64::from(cam.fy()), f64::from(cam.cx()), f64::from(cam.cy()));
+    let (w, h) = (cam.width() as f64, cam.height() as f64);
+    let placing = skip_frames + ar.frame;
+    let truth: Vec<Option<nalgebra::Point3<f64>>> = ar
+        .anchors
+        .iter()
+        .map(|a| {
+            let dir = Vector3::new(
+                (f64::from(a.pixel[0]) - cx) / fx,
+                (f64::from(a.pixel[1]) - cy) / fy,
+                1.0,
+            );
+            sequence.cast_ray(placing, &dir)
+        })
+        .collect();
+    let (mut errors, mut jitter) = (Vec::new(), Vec::new());
+    let mut last: Vec<Option<Vector3<f64>>> = vec![None; ar.anchors.len()];
+    for (j, drawn) in ar.drawn.iter().enumerate() {
+        let Some(gt) = sequence.ground_truth(placing + j) else { break };
+        for (k, (p, d)) in truth.iter().zip(drawn).enumerate() {
+            let error = p.zip(*d).and_then(|(p, d)| {
+                let p_c = gt.t_wc.inverse_transform_point(&p);
+                if p_c.z <= 0.0 {
+                    return None;
+                }
+                let (u, v) = (fx * p_c.x / p_c.z + cx, fy * p_c.y / p_c.z + cy);
+                let inside = u >= 0.0 && v >= 0.0 && u <= w - 1.0 && v <= h - 1.0;
+                inside.then(|| Vector3::new(f64::from(d[0]) - u, f64::from(d[1]) - v, 0.0))
+            });
+            if let Some(e) = error {
+                errors.push(e.norm());
+                if let Some(Some(before)) = last.get(k) {
+                    jitter.push((e - before).norm());
+                }
+            }
+            if let Some(slot) = last.get_mut(k) {
+                *slot = error;
+            }
+        }
+    }
+    ArAccuracy {
+        frame: ar.frame,
+        objects: ar.anchors.len(),
+        anchors: ar.anchors.clone(),
+        error_px: PixelStats::of(errors),
+        jitter_px: PixelStats::of(jitter),
+    }
+}

@@ -116,6 +116,10 @@ pub struct Report {
     /// The planes against the room's (the demo: its renderer knows the room).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plane_accuracy: Option<crate::plane_truth::PlaneAccuracy>,
+    /// The objects placed (`--ar`) and, on the demo, their pixel error against where the room
+    /// says they are.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ar: Option<crate::plane_truth::ArAccuracy>,
     /// Per-frame front-end figures (odometry and SLAM modes).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub odometry: Vec<TrackedFrame>,
@@ -219,6 +223,7 @@ impl Report {
             backend: None,
             planes: None,
             plane_accuracy: None,
+            ar: None,
             odometry: Vec::new(),
         }
     }
@@ -260,6 +265,7 @@ impl Report {
             backend: run.backend.clone(),
             planes: run.planes.clone(),
             plane_accuracy: None,
+            ar: None,
             odometry: run.per_frame.clone(),
             ..Self::data_path(&run.data, profile, skipped, note)
         }
@@ -394,7 +400,7 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
     };
     format!(
         "{} ({}): {} frames: {} tracked, {} relocalised, {} re-initialised, {} lost, {} before \
-         the first keyframe;{skipped} {} keyframes;{}{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} \
+         the first keyframe;{skipped} {} keyframes;{}{}{} ATE RMSE {ate}; RPE {}; {:.1} s wall ({:.1} \
          ms median per frame in the core); core state {} bytes",
         report.mode,
         report.profile,
@@ -421,6 +427,17 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
                 )
             });
             format!(" {} planes{accuracy};", p.planes.len())
+        }),
+        report.ar.as_ref().map_or(String::new(), |a| {
+            format!(
+                " AR: {} objects from frame {}, pixel error median {:.2} px, p95 {:.2} px, jitter \
+                 median {:.2} px;",
+                a.objects,
+                a.frame,
+                a.error_px.median,
+                a.error_px.p95,
+                a.jitter_px.median
+            )
         }),
         report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
         wall_s,

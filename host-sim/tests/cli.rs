@@ -241,6 +241,28 @@ fn short_demo_runs_end_to_end() {
 }
 
 #[test]
+fn a_short_demo_with_ar_places_two_objects_and_checks_its_planes() {
+    let out = tempfile::tempdir().unwrap();
+    let out_dir = out.path().to_str().unwrap();
+    let run = sim(&["demo", "--frames", "15", "--ar", "--out", out_dir]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("AR: 2 objects from frame 0"), "the summary says it: {stdout}");
+    let text = std::fs::read_to_string(out.path().join("report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let ar = &report["ar"];
+    assert_eq!(ar["objects"], 2);
+    assert_eq!(ar["anchors"].as_array().map(Vec::len), Some(2));
+    // Fifteen frames of a smooth path: the objects stay within a pixel of the room's points.
+    assert!(ar["error_px"]["count"].as_u64().unwrap() >= 15, "{ar}");
+    assert!(ar["error_px"]["max"].as_f64().unwrap() < 1.0, "{ar}");
+    let planes = &report["plane_accuracy"];
+    assert!(planes["found"].as_u64().unwrap() >= 1, "{planes}");
+    assert_eq!(planes["missed"], 0, "{planes}");
+    assert!(report["planes"]["planes"].as_array().is_some_and(|p| !p.is_empty()));
+}
+
+#[test]
 fn decode_serial_prints_poses_and_counts_losses() {
     use ferroslam_core::frame::TelemetrySink;
     use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, StatusMessage, TrackingState};

@@ -93,19 +93,15 @@ pub fn run_all() -> Result<()> {
     step("held-out TUM sequences (issue 4's 0.010 m bar), when present", || {
         crate::heldout::run(&[])
     })?;
-    step("demo, and its planes against the room's (issue 49)", || {
-        cargo(&[
-            "run",
-            "--release",
-            "-p",
-            "ferroslam-sim",
-            "--",
-            "demo",
-            "--out",
-            "target/ci/demo",
-        ])?;
-        demo_planes(&ci_out("demo"))
-    })?;
+    step(
+        "demo with its two AR objects; its planes and objects against the room's (issue 49)",
+        || {
+            let demo = ["run", "--release", "-p", "ferroslam-sim", "--", "demo", "--ar", "--out"];
+            cargo(&[&demo[..], &["target/ci/demo"]].concat())?;
+            demo_planes(&ci_out("demo"))?;
+            demo_objects(&ci_out("demo"))
+        },
+    )?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
     Ok(())
 }
@@ -146,6 +142,44 @@ fn demo_planes(dir: &Path) -> Result<()> {
         _ => bail!(
             "the demo's planes miss issue 49's bar (every face over 10% of a frame found, \
              normal within {DEMO_PLANE_NORMAL_DEG} deg, offset within {DEMO_PLANE_OFFSET_M} m)"
+        ),
+    }
+}
+
+/// Issue 49's AR bars on the demo: the objects' pixel error, median and p95, and the median of
+/// their frame-to-frame jitter.
+const DEMO_AR_MEDIAN_PX: f64 = 1.0;
+const DEMO_AR_P95_PX: f64 = 3.0;
+const DEMO_AR_JITTER_MEDIAN_PX: f64 = 0.5;
+
+/// Checks the AR objects of the demo's `report.json` in `dir` against [`DEMO_AR_MEDIAN_PX`],
+/// [`DEMO_AR_P95_PX`] and [`DEMO_AR_JITTER_MEDIAN_PX`].
+fn demo_objects(dir: &Path) -> Result<()> {
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let ar = &report["ar"];
+    let objects = ar["objects"].as_u64().unwrap_or(0);
+    let counted = ar["error_px"]["count"].as_u64().unwrap_or(0);
+    let (median, p95) = (ar["error_px"]["median"].as_f64(), ar["error_px"]["p95"].as_f64());
+    let jitter = ar["jitter_px"]["median"].as_f64();
+    eprintln!(
+        "demo AR: {objects} objects, {counted} drawings counted; error median {median:?} px, p95 \
+         {p95:?} px; jitter median {jitter:?} px"
+    );
+    match (median, p95, jitter) {
+        (Some(m), Some(p), Some(j))
+            if objects == 2
+                && counted > 0
+                && m <= DEMO_AR_MEDIAN_PX
+                && p <= DEMO_AR_P95_PX
+                && j <= DEMO_AR_JITTER_MEDIAN_PX =>
+        {
+            Ok(())
+        }
+        _ => bail!(
+            "the demo's AR objects miss issue 49's bar (two placed; error median <= \
+             {DEMO_AR_MEDIAN_PX} px, p95 <= {DEMO_AR_P95_PX} px; jitter median <= \
+             {DEMO_AR_JITTER_MEDIAN_PX} px)"
         ),
     }
 }

@@ -559,6 +559,7 @@ mod tests {
             state_bytes: 0,
             backend: None,
             planes: None,
+            ar: None,
         }
     }
 

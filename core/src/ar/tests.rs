@@ -257,3 +257,40 @@ fn a_full_plane_map_keeps_the_best_supported_planes() {
     assert_eq!(map.planes().len(), MAX_MAP_PLANES);
     assert_eq!(map.planes()[0].plane.samples, 150);
 }
+
+#[test]
+fn an_anchor_stands_where_the_pixel_ray_meets_the_plane_under_it() {
+    let cam = cam();
+    let truth = floor_and_wall();
+    let depth = render(&cam, &truth, 0.0, 3);
+    let view = DepthView::new(ImageView::packed(&depth, 320, 240).unwrap(), 1000.0).unwrap();
+    let planes = detect(&cam, &depth);
+    let t_wc = Pose::from_parts(
+        nalgebra::Translation3::new(1.0, 2.0, 0.5),
+        UnitQuaternion::from_euler_angles(0.0, 0.4, 0.0),
+    );
+    // A pixel low in the image sees the floor, one high up the wall.
+    for ((u, v), plane) in [((160.0, 220.0), truth[0]), ((160.0, 40.0), truth[1])] {
+        let a = Anchor::place(7, 2.0, (u, v), &view, &cam, &t_wc, &planes).unwrap();
+        assert_eq!((a.object, a.scale), (7, 2.0));
+        // On the true plane, in the camera's frame, to a millimetre; its up is the plane's normal.
+        let p_c = t_wc.inverse_transform_point(&Point3::from(a.p_w));
+        assert!((plane.n.dot(&p_c.coords) + plane.d).abs() < 0.001, "{a:?}");
+        let up_c = t_wc.rotation.inverse() * Vector3::from(a.up_w);
+        assert!(angle_deg(&up_c, &plane.n) < 0.1, "{a:?}");
+        // Drawn back at its pixel.
+        let [du, dv] = a.pixel(&t_wc, &cam).unwrap();
+        assert!((du - u).abs() < 1e-2 && (dv - v).abs() < 1e-2, "({du}, {dv})");
+    }
+    let err = |uv, scale, planes: &[Plane]| Anchor::place(0, scale, uv, &view, &cam, &t_wc, planes);
+    assert_eq!(err((-1.0, 5.0), 1.0, &planes), Err(AnchorError::OutsideImage));
+    assert_eq!(err((f32::NAN, 5.0), 1.0, &planes), Err(AnchorError::OutsideImage));
+    assert_eq!(err((160.0, 220.0), 0.0, &planes), Err(AnchorError::InvalidScale));
+    assert_eq!(err((160.0, 220.0), 1.0, &[]), Err(AnchorError::NoPlane));
+    let holes = std::vec![0u16; 320 * 240];
+    let empty = DepthView::new(ImageView::packed(&holes, 320, 240).unwrap(), 1000.0).unwrap();
+    assert_eq!(
+        Anchor::place(0, 1.0, (160.0, 220.0), &empty, &cam, &t_wc, &planes),
+        Err(AnchorError::NoDepth)
+    );
+}

@@ -73,6 +73,11 @@ pub struct DemoArgs {
     /// then run on it like on any recording.
     #[arg(long, value_name = "DIR")]
     pub write_dataset: Option<PathBuf>,
+    /// Place the paper's two objects on the two largest planes of the first tracked frame that
+    /// shows two, and measure where each later frame draws them against where the room says
+    /// they are (report.json `ar`: pixel error and jitter). SLAM mode.
+    #[arg(long)]
+    pub ar: bool,
 }
 
 impl DemoArgs {
@@ -156,6 +161,7 @@ impl DemoArgs {
             profile: self.profile.profile(),
             skip_frames: self.skip_frames,
             depth_level: self.depth_level,
+            ar: self.ar,
             ..DemoOptions::new(self.mode.track_mode(&self.slam))
         }
     }

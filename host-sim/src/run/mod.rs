@@ -15,6 +15,7 @@
 //! Layers: `source`, `data_path` and `result` at the bottom; `odometry` and `slam` above them;
 //! this module's [`track`] on top, choosing the core's sizes for the profile.
 
+mod ar;
 pub mod data_path;
 mod odometry;
 mod planes;
@@ -41,6 +42,7 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
     Box::new(make())
 }
 
+pub use ar::{ArRun, PlacedAnchor};
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use result::{
     BackendReport, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
@@ -110,6 +112,9 @@ pub struct RunOptions {
     pub progress_bar: bool,
     /// Map files the place memory starts from and is saved to (SLAM mode).
     pub maps: MapFiles,
+    /// Place the paper's two objects on the first two planes seen and record where each frame
+    /// draws them (SLAM mode; `--ar`).
+    pub ar: bool,
 }
 
 /// The map files of a SLAM run with a place memory ([`ferroslam_core::persist`]).
@@ -133,6 +138,7 @@ impl RunOptions {
             sensor: SensorModel::DEFAULT,
             progress_bar: true,
             maps: MapFiles::default(),
+            ar: false,
         }
     }
 }
@@ -185,8 +191,15 @@ where
             odometry::run(source, progress, cam, frontend)
         }
         (TrackMode::Slam { quota, schedule, map, places, .. }, vga) => {
-            let setup =
-                slam::Setup { quota, schedule, scale: map, frontend: slam, backend, places };
+            let setup = slam::Setup {
+                quota,
+                schedule,
+                scale: map,
+                frontend: slam,
+                backend,
+                places,
+                ar: options.ar,
+            };
             let m = &options.maps;
             match (map, vga) {
                 (MapScale::Board, false) => slam::run::<Qvga, S>(source, progress, cam, &setup, m),

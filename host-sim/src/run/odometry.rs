@@ -62,6 +62,7 @@ where
         state_bytes: std::mem::size_of::<F>() + std::mem::size_of::<BoardMap>(),
         backend: None,
         planes: None,
+        ar: None,
     })
 }
 #[cfg(test)]

@@ -148,6 +148,8 @@ pub struct TrackingRun {
     pub backend: Option<BackendReport>,
     /// The world's planes, from the keyframes' depth (SLAM mode).
     pub planes: Option<PlanesReport>,
+    /// The objects placed and where each frame drew them (SLAM mode with `ar`).
+    pub ar: Option<super::ar::ArRun>,
 }
 
 /// The per-frame figures of a front-end result.

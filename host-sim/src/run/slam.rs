@@ -26,6 +26,7 @@ use ferroslam_core::tracking::{
 };
 
 use super::MapFiles;
+use super::ar::ArRecorder;
 use super::data_path::{Progress, drive};
 use super::planes::KeyframePlanes;
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
@@ -280,6 +281,8 @@ pub struct Setup {
     pub backend: BackendParams,
     /// Whether the run remembers keyframes leaving the map and relocalizes in them.
     pub places: bool,
+    /// Whether the run places the paper's two objects and records where each frame draws them.
+    pub ar: bool,
 }
 
 /// The host's place memory: the board's store capacity, in RAM.
@@ -370,7 +373,7 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    let Setup { quota, schedule, scale, frontend, backend, places } = *setup;
+    let Setup { quota, schedule, scale, frontend, backend, places, ar } = *setup;
     // A megabyte or more.
     let mut slam: Box<Slam<P>> = super::boxed(|| Slam::with_params(frontend, backend));
     // Half a megabyte; its RANSAC seeded as the front end's.
@@ -382,8 +385,9 @@ where
     load_map(&mut memory, maps)?;
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
-    let mut planes =
-        KeyframePlanes::new(PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT });
+    let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
+    let mut planes = KeyframePlanes::new(plane_params);
+    let mut anchors = ar.then(|| ArRecorder::new(plane_params));
     let mut stepper = Stepper {
         slam: &mut slam,
         places: &mut memory,
@@ -404,6 +408,9 @@ where
             return Ok(());
         }
         online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
+        if let Some(anchors) = &mut anchors {
+            anchors.frame(per_frame.len() - 1, frame, cam, &r.t_wc, r.tracked);
+        }
         let map = stepper.slam.map();
         let reference = r.reference_keyframe.and_then(|k| map.keyframe(k).map(|kf| (k, kf.t_wc)));
         relative.push(match reference {
@@ -458,6 +465,7 @@ where
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
         planes: Some(planes.report(&record.keyframe_pose)),
+        ar: anchors.and_then(ArRecorder::finish),
     })
 }
 

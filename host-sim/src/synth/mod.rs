@@ -444,6 +444,16 @@ impl SyntheticSequence {
         planes
     }
 
+    /// Where the ray of frame `index`'s camera in direction `dir_c` (camera frame) first meets
+    /// the room, in the world frame, metres; `None` past the end or for a null direction.
+    pub fn cast_ray(&self, index: usize, dir_c: &Vector3<f64>) -> Option<Point3<f64>> {
+        let t_wc = self.ground_truth(index)?.t_wc;
+        let origin = Point3::from(t_wc.translation.vector);
+        let dir = t_wc.rotation * dir_c;
+        let hit = self.scene.cast(&origin, &dir, u32::MAX)?;
+        Some(origin + dir * hit.t)
+    }
+
     /// A [`ferroslam_core::frame::FrameSource`] that renders the frames in order.
     pub fn into_source(self) -> SynthSource {
         SynthSource::new(self)
