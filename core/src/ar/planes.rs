@@ -231,11 +231,12 @@ impl Cell {
 }
 
 /// Plane detection on depth images (see the module documentation of `ar`): the grid's cells
-/// and the region growing's queue, reused from frame to frame: 18,000 bytes (`memory-budget.md`); place it in a
-/// `static` or a box, not on the stack.
+/// and the region growing's queue, reused from frame to frame: 19,200 bytes
+/// (`memory-budget.md`); place it in a `static` or a box, not on the stack.
 ///
 /// Cost per frame: 64 depth samples interpolated and back-projected per cell, two passes over
-/// them (the mean, then the centred scatter), one 3 x 3 eigen-decomposition per cell and one per cell a region takes.
+/// them (the mean, then the centred scatter), one 3 x 3 eigen-decomposition per cell and one
+/// per cell a region takes.
 #[derive(Debug, Clone)]
 pub struct PlaneDetector {
     cells: [Cell; CELLS],
