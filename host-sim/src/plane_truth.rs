@@ -205,36 +205,69 @@ pub struct ArAccuracy {
     pub jitter_px: PixelStats,
 }
 
-/// [`ArAccuracy`] of `ar`, a run of `sequence`'s frames from `skip_frames` on seen by `cam`.
+/// [`ArAccuracy`] of `ar`, a run of `sequence`'s frames from `skip_frames` on seen by `cam`: the
+/// truth under each placing pixel is where the renderer's ray from the true pose meets the room.
 pub fn ar_accuracy(
     sequence: &SyntheticSequence,
     skip_frames: usize,
     ar: &crate::run::ArRun,
     cam: &ferroslam_core::geometry::PinholeCamera,
 ) -> ArAccuracy {
-    let (fx, fy, cx, cy) =
-        (f64::from(cam.fx()), f64::from(cam.fy()), f64::from(cam.cx()), f64::from(cam.cy()));
-    let (w, h) = (cam.width() as f64, cam.height() as f64);
     let placing = skip_frames + ar.frame;
-    let truth: Vec<Option<nalgebra::Point3<f64>>> = ar
+    let truth = ar.anchors.iter().map(|a| sequence.cast_ray(placing, &ray(cam, a.pixel))).collect();
+    accuracy(ar, cam, truth, |j| sequence.ground_truth(placing + j).map(|g| g.t_wc))
+}
+
+/// [`ArAccuracy`] of `ar` against a recording's ground truth `gt` (camera-to-world poses, the
+/// nearest within `max_dt_s` of each frame's timestamp in `timestamps_s`, the run's frames in
+/// order): the truth under each placing pixel is the placing frame's depth there, seen from its
+/// true pose. `None` when the placing frame has no ground truth.
+pub fn ar_accuracy_with_gt(
+    ar: &crate::run::ArRun,
+    cam: &ferroslam_core::geometry::PinholeCamera,
+    gt: &Trajectory,
+    timestamps_s: &[f64],
+    max_dt_s: f64,
+) -> Option<ArAccuracy> {
+    let stamps: Vec<f64> = gt.poses.iter().map(|p| p.timestamp_s).collect();
+    let pose_at = |t: f64| {
+        let i = crate::eval::rpe::find_closest_index(&stamps, t);
+        gt.poses.get(i).filter(|p| (p.timestamp_s - t).abs() <= max_dt_s).map(|p| p.t_wc)
+    };
+    let placing = pose_at(*timestamps_s.get(ar.frame)?)?;
+    let truth = ar
         .anchors
         .iter()
-        .map(|a| {
-            let dir = Vector3::new(
-                (f64::from(a.pixel[0]) - cx) / fx,
-                (f64::from(a.pixel[1]) - cy) / fy,
-                1.0,
-            );
-            sequence.cast_ray(placing, &dir)
-        })
+        .map(|a| Some(placing * nalgebra::Point3::from(ray(cam, a.pixel) * f64::from(a.depth_m))))
         .collect();
+    Some(accuracy(ar, cam, truth, |j| pose_at(*timestamps_s.get(ar.frame + j)?)))
+}
+
+/// The camera-frame ray (z = 1) of `pixel`.
+fn ray(cam: &ferroslam_core::geometry::PinholeCamera, pixel: [f32; 2]) -> Vector3<f64> {
+    let (fx, fy) = (f64::from(cam.fx()), f64::from(cam.fy()));
+    let (cx, cy) = (f64::from(cam.cx()), f64::from(cam.cy()));
+    Vector3::new((f64::from(pixel[0]) - cx) / fx, (f64::from(pixel[1]) - cy) / fy, 1.0)
+}
+
+/// The errors of `ar`'s drawings against `truth` (each object's true world point) seen from
+/// `true_pose(j)` (the true camera-to-world pose of the `j`-th frame from the placing one).
+fn accuracy(
+    ar: &crate::run::ArRun,
+    cam: &ferroslam_core::geometry::PinholeCamera,
+    truth: Vec<Option<nalgebra::Point3<f64>>>,
+    true_pose: impl Fn(usize) -> Option<nalgebra::Isometry3<f64>>,
+) -> ArAccuracy {
+    let (fx, fy) = (f64::from(cam.fx()), f64::from(cam.fy()));
+    let (cx, cy) = (f64::from(cam.cx()), f64::from(cam.cy()));
+    let (w, h) = (cam.width() as f64, cam.height() as f64);
     let (mut errors, mut jitter) = (Vec::new(), Vec::new());
     let mut last: Vec<Option<Vector3<f64>>> = vec![None; ar.anchors.len()];
     for (j, drawn) in ar.drawn.iter().enumerate() {
-        let Some(gt) = sequence.ground_truth(placing + j) else { break };
+        let t_wc = true_pose(j);
         for (k, (p, d)) in truth.iter().zip(drawn).enumerate() {
-            let error = p.zip(*d).and_then(|(p, d)| {
-                let p_c = gt.t_wc.inverse_transform_point(&p);
+            let error = p.zip(*d).zip(t_wc).and_then(|((p, d), t_wc)| {
+                let p_c = t_wc.inverse_transform_point(&p);
                 if p_c.z <= 0.0 {
                     return None;
                 }

@@ -361,7 +361,33 @@ fn replay_seven_scenes_both() -> Result<()> {
     if slam >= odometry {
         bail!("7-Scenes: SLAM ({slam:.4} m) is not better than odometry ({odometry:.4} m)");
     }
-    Ok(())
+    seven_scenes_objects(&ci_out("replay-7scenes-slam"))
+}
+
+/// Issue 49's AR bars on 7-Scenes: the two objects the SLAM replay placed, drawn within 3 px of
+/// where the placing frame's depth and true pose put them (median), 8 px (p95).
+const SEVEN_SCENES_AR_MEDIAN_PX: f64 = 3.0;
+const SEVEN_SCENES_AR_P95_PX: f64 = 8.0;
+
+/// Checks the AR objects of the 7-Scenes SLAM replay's `report.json` in `dir`.
+fn seven_scenes_objects(dir: &Path) -> Result<()> {
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let ar = &report["ar"];
+    let objects = ar["objects"].as_u64().unwrap_or(0);
+    let (median, p95) = (ar["error_px"]["median"].as_f64(), ar["error_px"]["p95"].as_f64());
+    eprintln!("7-Scenes AR: {objects} objects; error median {median:?} px, p95 {p95:?} px");
+    match (median, p95) {
+        (Some(m), Some(p))
+            if objects == 2 && m <= SEVEN_SCENES_AR_MEDIAN_PX && p <= SEVEN_SCENES_AR_P95_PX =>
+        {
+            Ok(())
+        }
+        _ => bail!(
+            "7-Scenes' AR objects miss issue 49's bar (two placed; error median <= \
+             {SEVEN_SCENES_AR_MEDIAN_PX} px, p95 <= {SEVEN_SCENES_AR_P95_PX} px)"
+        ),
+    }
 }
 
 /// Issue 47's jump-back bars on 7-Scenes played `0-700,100-999` (frame 701 is the recording's

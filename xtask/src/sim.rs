@@ -62,6 +62,8 @@ fn replay_qvga(
             frames: frames.map(str::parse).transpose()?,
             ..DatasetOptions::default()
         },
+        // SLAM replays place the two AR objects too (issue 49): it changes no pose.
+        ar: matches!(mode, TrackMode::Slam { .. }),
         ..ReplayOptions::new(Some(mode))
     };
     let replay = Replay::open(dataset, options)?;

@@ -79,6 +79,11 @@ pub struct ReplayArgs {
     /// out with a warning, and report.json counts and lists them.
     #[arg(long)]
     pub strict: bool,
+    /// Place the paper's two objects on the two largest planes of the first tracked frame that
+    /// shows two; with ground truth, measure where each later frame draws them against where the
+    /// placing frame's depth and true pose put them (report.json `ar`). SLAM mode.
+    #[arg(long)]
+    pub ar: bool,
 }
 
 impl ReplayArgs {
@@ -119,6 +124,7 @@ impl ReplayArgs {
                 localize: self.localize,
             },
             strict: self.strict,
+            ar: self.ar,
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
         }
     }

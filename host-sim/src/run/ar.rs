@@ -62,9 +62,12 @@ impl ArRecorder {
             let uv = cam.project(&Point3::from(plane.centroid))?;
             let anchor =
                 Anchor::place(object, 1.0, (uv.x, uv.y), &frame.depth, cam, t_wc, &planes).ok()?;
+            // Read as `Anchor::place` read it (it placed the object, so there is a reading).
+            let depth_m = frame.depth.depth_at(uv.x, uv.y, 0.05)?;
             anchors.push(PlacedAnchor {
                 object,
                 pixel: [uv.x, uv.y],
+                depth_m,
                 position_m: anchor.p_w,
                 up: anchor.up_w,
                 anchor,
@@ -86,6 +89,8 @@ pub struct PlacedAnchor {
     pub object: u16,
     /// The pixel of the placing frame, at the processing resolution.
     pub pixel: [f32; 2],
+    /// The placing frame's depth at that pixel, metres.
+    pub depth_m: f32,
     /// Where it stands in the run's world frame, metres.
     pub position_m: [f32; 3],
     /// Its up: the plane's normal in the run's world frame.
