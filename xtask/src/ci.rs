@@ -124,8 +124,7 @@ const DEMO_PLANE_OFFSET_M: f64 = 0.01;
 /// Checks the demo's `report.json` in `dir` against [`DEMO_PLANE_NORMAL_DEG`] and
 /// [`DEMO_PLANE_OFFSET_M`].
 fn demo_planes(dir: &Path) -> Result<()> {
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let report = report_json(dir)?;
     let a = &report["plane_accuracy"];
     let (found, missed) = (a["found"].as_u64(), a["missed"].as_u64());
     let (deg, off) = (a["normal_error_deg_max"].as_f64(), a["offset_error_m_max"].as_f64());
@@ -146,6 +145,14 @@ fn demo_planes(dir: &Path) -> Result<()> {
     }
 }
 
+/// The `report.json` a replay or a demo wrote into `dir`.
+fn report_json(dir: &Path) -> Result<serde_json::Value> {
+    let path = dir.join("report.json");
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(serde_json::from_str(&text)?)
+}
+
 /// Issue 49's AR bars on the demo: the objects' pixel error, median and p95, and the median of
 /// their frame-to-frame jitter.
 const DEMO_AR_MEDIAN_PX: f64 = 1.0;
@@ -155,8 +162,7 @@ const DEMO_AR_JITTER_MEDIAN_PX: f64 = 0.5;
 /// Checks the AR objects of the demo's `report.json` in `dir` against [`DEMO_AR_MEDIAN_PX`],
 /// [`DEMO_AR_P95_PX`] and [`DEMO_AR_JITTER_MEDIAN_PX`].
 fn demo_objects(dir: &Path) -> Result<()> {
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let report = report_json(dir)?;
     let ar = &report["ar"];
     let objects = ar["objects"].as_u64().unwrap_or(0);
     let counted = ar["error_px"]["count"].as_u64().unwrap_or(0);
@@ -371,8 +377,7 @@ const SEVEN_SCENES_AR_P95_PX: f64 = 8.0;
 
 /// Checks the AR objects of the 7-Scenes SLAM replay's `report.json` in `dir`.
 fn seven_scenes_objects(dir: &Path) -> Result<()> {
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json"))?)?;
+    let report = report_json(dir)?;
     let ar = &report["ar"];
     let objects = ar["objects"].as_u64().unwrap_or(0);
     let (median, p95) = (ar["error_px"]["median"].as_f64(), ar["error_px"]["p95"].as_f64());
