@@ -149,6 +149,7 @@ fn track(
         sensor.depth_noise_coeff_per_m
     );
     let written = write_odometry(out, &run, Some(gt), profile.name, &[], note)?;
+    crate::ar_files::write_ar(out, &run)?;
     let mut report = written.report;
     let t_gt_est = first_keyframe_alignment(&run.keyframes, gt);
     if let (Some(planes), Some(t_gt_est)) = (&run.planes, t_gt_est) {

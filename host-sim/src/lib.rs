@@ -20,6 +20,7 @@
 //!   calls in process;
 //! - [`commands`]: the CLI's subcommands, thin: arguments in, a run, its outputs.
 
+pub mod ar_files;
 pub mod commands;
 pub mod dataset;
 pub mod demo;

@@ -260,6 +260,15 @@ fn a_short_demo_with_ar_places_two_objects_and_checks_its_planes() {
     assert!(planes["found"].as_u64().unwrap() >= 1, "{planes}");
     assert_eq!(planes["missed"], 0, "{planes}");
     assert!(report["planes"]["planes"].as_array().is_some_and(|p| !p.is_empty()));
+    // The files a person opens: the drawings, an overlay frame and the preview.
+    let ar_dir = out.path().join("ar");
+    let pixels = std::fs::read_to_string(ar_dir.join("pixels.csv")).unwrap();
+    assert_eq!(pixels.lines().next(), Some("frame,timestamp_s,object,u,v"));
+    assert!(pixels.lines().count() > 15, "{pixels}");
+    let overlay = image::open(ar_dir.join("frame_0000.png")).unwrap().to_rgb8();
+    assert_eq!(overlay.dimensions(), (320, 240));
+    assert!(overlay.pixels().any(|p| p.0 == [230, 40, 40]), "the red object is drawn");
+    assert!(std::fs::metadata(ar_dir.join("preview.gif")).unwrap().len() > 0);
 }
 
 #[test]
