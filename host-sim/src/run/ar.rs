@@ -14,7 +14,7 @@ use serde::Serialize;
 const OBJECTS: u16 = 2;
 
 /// Frames between two overlay images kept (the preview's frame step).
-pub const OVERLAY_EVERY: usize = 3;
+const OVERLAY_EVERY: usize = 3;
 
 /// An object's cube side at scale 1, metres.
 const CUBE_SIDE_M: f32 = 0.15;
@@ -124,7 +124,7 @@ pub struct ArRun {
     /// Per frame from `frame` on, per object: the pixel drawn (`None`: behind the camera).
     #[serde(skip)]
     pub drawn: Vec<Vec<Option<[f32; 2]>>>,
-    /// Every [`OVERLAY_EVERY`]th frame from `frame` on: its index and its camera image with the
+    /// Every third frame from `frame` on: its index and its camera image with the
     /// objects drawn.
     #[serde(skip)]
     pub overlays: Vec<(usize, image::RgbImage)>,
