@@ -149,15 +149,15 @@ fn track(
         sensor.depth_noise_coeff_per_m
     );
     let written = write_odometry(out, &run, Some(gt), profile.name, &[], note)?;
-    crate::ar_files::write_ar(out, &run)?;
     let mut report = written.report;
     let t_gt_est = first_keyframe_alignment(&run.keyframes, gt);
     if let (Some(planes), Some(t_gt_est)) = (&run.planes, t_gt_est) {
         report.plane_accuracy = Some(plane_accuracy(&truth, planes, &t_gt_est, PLANE_MIN_FRACTION));
-        report.write(out)?;
     }
     if let (Some(ar), Some(sequence)) = (&run.ar, &truth_sequence) {
         report.ar = Some(ar_accuracy(sequence, options.skip_frames, ar, &cam));
+    }
+    if report.plane_accuracy.is_some() || report.ar.is_some() {
         report.write(out)?;
     }
     Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })

@@ -171,7 +171,6 @@ impl Replay {
         );
         let note = format!("{note}; {calibration_note}");
         let written = write_odometry(out, &run, gt.as_ref(), profile.name, &skipped, note)?;
-        crate::ar_files::write_ar(out, &run)?;
         let mut report = written.report;
         if let (Some(ar), Some(gt)) = (&run.ar, &gt) {
             let stamps: Vec<f64> = run.per_frame.iter().map(|f| f.timestamp_s).collect();

@@ -305,8 +305,9 @@ pub struct RunOutputs {
     pub wall_s: f64,
 }
 
-/// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json` and, with ground truth,
-/// `trajectory.svg` and `ate.svg` into `dir`; `skipped` are the listed images the run did not use.
+/// Writes `CameraTrajectory.txt`, `KeyFrameTrajectory.txt`, `report.json`, with ground truth
+/// `trajectory.svg` and `ate.svg`, and with AR objects `ar/` ([`crate::ar_files::write_ar`]) into
+/// `dir`; `skipped` are the listed images the run did not use.
 ///
 /// # Errors
 /// A file that cannot be written. A trajectory that cannot be evaluated (e.g. no estimated pose
@@ -357,6 +358,7 @@ pub fn write_odometry(
         Report::odometry(run, profile, skipped, note, evaluation.as_ref(), online_ate, sha256);
     report.evaluation_error = evaluation_error;
     report.write(dir)?;
+    crate::ar_files::write_ar(dir, run)?;
     Ok(OdometryOutputs { report, evaluation })
 }
 

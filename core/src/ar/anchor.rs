@@ -45,6 +45,10 @@ impl Anchor {
     /// apart).
     pub const MAX_GAP_M: f32 = 0.05;
 
+    /// The depth step [`Self::place`] reads the pixel's depth with: the plane detector's default
+    /// (a reading across an edge is no surface).
+    pub const MAX_RELATIVE_STEP: f32 = super::PlaneParams::DEFAULT.max_relative_step;
+
     /// Places `object` at `scale` where the ray of pixel `(u, v)` (the frame's pixel
     /// coordinates, centres at integers) meets the plane under it: of `planes` (the frame's, in
     /// its camera's frame, as `PlaneDetector::detect` gives them), the nearest to the point the
@@ -70,8 +74,7 @@ impl Anchor {
         if !cam.in_image(&nalgebra::Point2::new(u, v), 0.0) {
             return Err(AnchorError::OutsideImage);
         }
-        // The same step as the detector's default: a reading across an edge is no surface.
-        let z = depth.depth_at(u, v, 0.05).ok_or(AnchorError::NoDepth)?;
+        let z = depth.depth_at(u, v, Self::MAX_RELATIVE_STEP).ok_or(AnchorError::NoDepth)?;
         let seen = cam.back_project(u, v, z);
         let plane = planes
             .iter()

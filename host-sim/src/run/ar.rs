@@ -77,7 +77,7 @@ impl ArRecorder {
             let anchor =
                 Anchor::place(object, 1.0, (uv.x, uv.y), &frame.depth, cam, t_wc, &planes).ok()?;
             // Read as `Anchor::place` read it (it placed the object, so there is a reading).
-            let depth_m = frame.depth.depth_at(uv.x, uv.y, 0.05)?;
+            let depth_m = frame.depth.depth_at(uv.x, uv.y, Anchor::MAX_RELATIVE_STEP)?;
             anchors.push(PlacedAnchor {
                 object,
                 pixel: [uv.x, uv.y],
@@ -167,8 +167,10 @@ fn overlay(
                 if !cam.in_image(&uv, 0.0) {
                     continue;
                 }
-                let hidden =
-                    frame.depth.depth_at(uv.x, uv.y, 0.05).is_some_and(|z| z < p_c.z - 0.02);
+                let hidden = frame
+                    .depth
+                    .depth_at(uv.x, uv.y, Anchor::MAX_RELATIVE_STEP)
+                    .is_some_and(|z| z < p_c.z - 0.02);
                 if !hidden {
                     img.put_pixel(uv.x.round() as u32, uv.y.round() as u32, image::Rgb(colour));
                 }
