@@ -46,6 +46,8 @@ pub mod capacity {
     /// Bytes of flash the board's long-term store takes: 512 KiB (the persistence layer checks
     /// that its tables, the records and its spare units fill it).
     pub const BOARD_STORE_FLASH_BYTES: usize = 512 * 1024;
+    /// Virtual objects placed at once (`ar::Anchors`).
+    pub const MAX_ANCHORS: usize = 8;
 }
 
 /// The capacities of a map and of the back end that adjusts it.

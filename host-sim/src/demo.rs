@@ -40,8 +40,9 @@ pub struct DemoOptions {
     pub depth_level: Option<u8>,
     /// Whether to draw a progress bar on stderr (only ever drawn on a terminal).
     pub progress_bar: bool,
-    /// Place the paper's two objects and measure their pixel error (SLAM mode; `--ar`).
-    pub ar: bool,
+    /// Which virtual objects to place; their pixel error is measured (SLAM mode; `--ar`,
+    /// `--anchors`; `None`: no AR).
+    pub ar: Option<crate::run::ArPlan>,
 }
 
 impl DemoOptions {
@@ -54,7 +55,7 @@ impl DemoOptions {
             mode,
             depth_level: None,
             progress_bar: true,
-            ar: false,
+            ar: None,
         }
     }
 }
@@ -122,7 +123,7 @@ fn track(
     );
     // The ground truth the objects are judged on: the sequence itself (the source renders a
     // copy).
-    let truth_sequence = options.ar.then(|| sequence.clone());
+    let truth_sequence = options.ar.is_some().then(|| sequence.clone());
     let mut source = profile_source(sequence, options);
     let sensor = SensorModel {
         depth_noise_coeff_per_m: sensor_depth_noise(options.synth.depth_noise_k),
@@ -131,7 +132,7 @@ fn track(
     let run_options = RunOptions {
         sensor,
         progress_bar: options.progress_bar,
-        ar: options.ar,
+        ar: options.ar.clone(),
         ..RunOptions::new(profile, mode)
     };
     let run = run::track(&mut source, frames, &cam, &run_options)?;

@@ -13,6 +13,7 @@
 //! - [`serial`]: the firmware's UART captures decoded, and host writers of the telemetry port;
 //! - [`run`]: runs of the data path, odometry and SLAM over any frame source: the library API
 //!   behind `replay` and `demo`, which xtask and the tests call;
+//! - [`anchor_script`]: `--anchors` scripts (place, scale, remove virtual objects by frame);
 //! - [`map_file`]: saved map files read and checked whole, summarized, written as PLY;
 //! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
 //! - [`replay`] and [`demo`]: a recorded folder or the synthetic sequence opened, run and written
@@ -20,6 +21,7 @@
 //!   calls in process;
 //! - [`commands`]: the CLI's subcommands, thin: arguments in, a run, its outputs.
 
+pub mod anchor_script;
 pub mod ar_files;
 pub mod commands;
 pub mod dataset;

@@ -186,61 +186,86 @@ impl PixelStats {
     }
 }
 
-/// How far from where they belong a run drew its objects (report.json `ar`, the demo with
-/// `--ar`): per frame from the placing one on, per object, the pixel the frame's output pose
-/// draws it at against the pixel the room's point under its placing pixel projects to with the
-/// frame's true pose (processing resolution; frames where that point is outside the image or
-/// behind the camera are not counted; occlusion is not modelled).
+/// How far from where they belong a run drew its objects (report.json `ar`, with `--ar` or
+/// `--anchors`): per frame from the first placing one on, per placed object, the pixel the
+/// frame's output pose draws it at against the pixel the true point under its placing pixel
+/// projects to with the frame's true pose (processing resolution; frames where that point is
+/// outside the image or behind the camera are not counted; occlusion is not modelled).
 #[derive(Debug, Clone, Serialize)]
 pub struct ArAccuracy {
-    /// The frame (0-based, as played) the objects were placed in.
+    /// The frame (0-based, as played) the first object was placed in.
     pub frame: usize,
-    /// Objects placed.
+    /// Placements (an object placed again counts again).
     pub objects: usize,
-    /// The objects' placing pixels.
+    /// The placements: object, frame, pixel, where it stood.
     pub anchors: Vec<crate::run::PlacedAnchor>,
-    /// Pixel error of every object in every frame counted.
-    pub error_px: PixelStats,
-    /// Frame-to-frame jitter: how much an object's error moved between consecutive frames, pixels.
-    pub jitter_px: PixelStats,
+    /// The `--anchors` script's steps as applied, with their outcomes.
+    pub events: Vec<crate::run::ArEvent>,
+    /// Pixel error of every object in every frame counted (`None`: no ground truth).
+    pub error_px: Option<PixelStats>,
+    /// Frame-to-frame jitter: how much an object's error moved between consecutive frames,
+    /// pixels (`None`: no ground truth).
+    pub jitter_px: Option<PixelStats>,
+}
+
+impl ArAccuracy {
+    /// `ar`'s placements and events, without a truth to measure them against.
+    pub fn unmeasured(ar: &crate::run::ArRun) -> Self {
+        Self {
+            frame: ar.frame,
+            objects: ar.anchors.len(),
+            anchors: ar.anchors.clone(),
+            events: ar.events.clone(),
+            error_px: None,
+            jitter_px: None,
+        }
+    }
 }
 
 /// [`ArAccuracy`] of `ar`, a run of `sequence`'s frames from `skip_frames` on seen by `cam`: the
-/// truth under each placing pixel is where the renderer's ray from the true pose meets the room.
+/// truth under each placing pixel is where the renderer's ray from the true pose of its placing
+/// frame meets the room.
 pub fn ar_accuracy(
     sequence: &SyntheticSequence,
     skip_frames: usize,
     ar: &crate::run::ArRun,
     cam: &ferroslam_core::geometry::PinholeCamera,
 ) -> ArAccuracy {
-    let placing = skip_frames + ar.frame;
-    let truth = ar.anchors.iter().map(|a| sequence.cast_ray(placing, &ray(cam, a.pixel))).collect();
-    accuracy(ar, cam, truth, |j| sequence.ground_truth(placing + j).map(|g| g.t_wc))
+    let truth = ar
+        .anchors
+        .iter()
+        .map(|a| sequence.cast_ray(skip_frames + a.frame, &ray(cam, a.pixel)))
+        .collect();
+    let first = skip_frames + ar.frame;
+    accuracy(ar, cam, truth, |j| sequence.ground_truth(first + j).map(|g| g.t_wc))
 }
 
 /// [`ArAccuracy`] of `ar` against a recording's ground truth `gt` (camera-to-world poses, the
 /// nearest within `max_dt_s` of each frame's timestamp in `timestamps_s`, the run's frames in
-/// order): the truth under each placing pixel is the placing frame's depth there, seen from its
-/// true pose. `None` when the placing frame has no ground truth.
+/// order): the truth under each placing pixel is its placing frame's depth there, seen from
+/// that frame's true pose (an object whose placing frame has no ground truth is not measured).
 pub fn ar_accuracy_with_gt(
     ar: &crate::run::ArRun,
     cam: &ferroslam_core::geometry::PinholeCamera,
     gt: &Trajectory,
     timestamps_s: &[f64],
     max_dt_s: f64,
-) -> Option<ArAccuracy> {
+) -> ArAccuracy {
     let stamps: Vec<f64> = gt.poses.iter().map(|p| p.timestamp_s).collect();
-    let pose_at = |t: f64| {
+    let pose_at = |frame: usize| {
+        let t = *timestamps_s.get(frame)?;
         let i = crate::eval::rpe::find_closest_index(&stamps, t);
         gt.poses.get(i).filter(|p| (p.timestamp_s - t).abs() <= max_dt_s).map(|p| p.t_wc)
     };
-    let placing = pose_at(*timestamps_s.get(ar.frame)?)?;
     let truth = ar
         .anchors
         .iter()
-        .map(|a| Some(placing * nalgebra::Point3::from(ray(cam, a.pixel) * f64::from(a.depth_m))))
+        .map(|a| {
+            let seen = ray(cam, a.pixel) * f64::from(a.depth_m);
+            pose_at(a.frame).map(|t_wc| t_wc * nalgebra::Point3::from(seen))
+        })
         .collect();
-    Some(accuracy(ar, cam, truth, |j| pose_at(*timestamps_s.get(ar.frame + j)?)))
+    accuracy(ar, cam, truth, |j| pose_at(ar.frame + j))
 }
 
 /// The camera-frame ray (z = 1) of `pixel`.
@@ -287,10 +312,8 @@ fn accuracy(
         }
     }
     ArAccuracy {
-        frame: ar.frame,
-        objects: ar.anchors.len(),
-        anchors: ar.anchors.clone(),
-        error_px: PixelStats::of(errors),
-        jitter_px: PixelStats::of(jitter),
+        error_px: Some(PixelStats::of(errors)),
+        jitter_px: Some(PixelStats::of(jitter)),
+        ..ArAccuracy::unmeasured(ar)
     }
 }

@@ -17,7 +17,7 @@ use nalgebra::Point3;
 
 use crate::dataset::{Dataset, DatasetOptions, SkipReason, Stream};
 use crate::eval;
-use crate::plane_truth::ar_accuracy_with_gt;
+use crate::plane_truth::{ArAccuracy, ar_accuracy_with_gt};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
 use crate::run::{self, MapFiles, Progress, RunOptions, TrackMode};
@@ -51,9 +51,9 @@ pub struct ReplayOptions {
     /// which (`replay --strict`). Depth images without a frame do not count. Default `false`:
     /// skipped frames are left out, said by [`skipped_frames_text`] and counted in the report.
     pub strict: bool,
-    /// Place the paper's two objects and, with ground truth, measure their pixel error (SLAM
-    /// mode; `--ar`).
-    pub ar: bool,
+    /// Which virtual objects to place; with ground truth, their pixel error is measured (SLAM
+    /// mode; `--ar`, `--anchors`; `None`: no AR).
+    pub ar: Option<crate::run::ArPlan>,
 }
 
 impl ReplayOptions {
@@ -67,7 +67,7 @@ impl ReplayOptions {
             progress_bar: true,
             maps: MapFiles::default(),
             strict: false,
-            ar: false,
+            ar: None,
         }
     }
 }
@@ -160,7 +160,7 @@ impl Replay {
             progress_bar: options.progress_bar,
             sensor,
             maps: options.maps.clone(),
-            ar: options.ar,
+            ar: options.ar.clone(),
             ..default
         };
         let run = run::track(&mut reader, frames, &cam, &run_options)?;
@@ -172,9 +172,12 @@ impl Replay {
         let note = format!("{note}; {calibration_note}");
         let written = write_odometry(out, &run, gt.as_ref(), profile.name, &skipped, note)?;
         let mut report = written.report;
-        if let (Some(ar), Some(gt)) = (&run.ar, &gt) {
+        if let Some(ar) = &run.ar {
             let stamps: Vec<f64> = run.per_frame.iter().map(|f| f.timestamp_s).collect();
-            report.ar = ar_accuracy_with_gt(ar, &cam, gt, &stamps, eval::DEFAULT_MAX_DT_S);
+            report.ar = Some(match &gt {
+                Some(gt) => ar_accuracy_with_gt(ar, &cam, gt, &stamps, eval::DEFAULT_MAX_DT_S),
+                None => ArAccuracy::unmeasured(ar),
+            });
             report.write(out)?;
         }
         Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })

@@ -430,17 +430,7 @@ pub fn summary(report: &Report, wall_s: f64) -> String {
             });
             format!(" {} planes{accuracy};", p.planes.len())
         }),
-        report.ar.as_ref().map_or(String::new(), |a| {
-            format!(
-                " AR: {} objects from frame {}, pixel error median {:.2} px, p95 {:.2} px, jitter \
-                 median {:.2} px;",
-                a.objects,
-                a.frame,
-                a.error_px.median,
-                a.error_px.p95,
-                a.jitter_px.median
-            )
-        }),
+        report.ar.as_ref().map_or(String::new(), ar_summary),
         report.rpe_trans_m_per_s.map_or("n/a".to_owned(), |r| format!("{r:.4} m/s")),
         wall_s,
         report.host_cost.process_median / 1000.0,
@@ -459,4 +449,26 @@ pub fn thousands(value: u64) -> String {
         out.push(c);
     }
     out
+}
+
+/// The summary's AR part: objects placed, their pixel error, and script steps refused.
+fn ar_summary(a: &crate::plane_truth::ArAccuracy) -> String {
+    let error = match (&a.error_px, &a.jitter_px) {
+        (Some(e), Some(j)) if e.count > 0 => format!(
+            "pixel error median {:.2} px, p95 {:.2} px, jitter median {:.2} px",
+            e.median, e.p95, j.median
+        ),
+        (Some(_), _) => "no drawing in view to measure".to_owned(),
+        _ => "pixel error not measured (no ground truth)".to_owned(),
+    };
+    let refused = a.events.iter().filter(|e| e.refused.is_some()).count();
+    let script = if a.events.is_empty() {
+        String::new()
+    } else {
+        format!(", {refused} of {} script steps refused (report.json ar.events)", a.events.len())
+    };
+    if a.objects == 0 {
+        return format!(" AR: no object placed{script};");
+    }
+    format!(" AR: {} objects from frame {}, {error}{script};", a.objects, a.frame)
 }

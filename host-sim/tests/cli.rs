@@ -272,6 +272,49 @@ fn a_short_demo_with_ar_places_two_objects_and_checks_its_planes() {
 }
 
 #[test]
+fn an_anchor_script_places_scales_and_removes_objects_and_says_what_it_refused() {
+    let out = tempfile::tempdir().unwrap();
+    let script = out.path().join("anchors.toml");
+    // Object 5 on the floor at frame 2 (sensor pixels), twice as big at frame 6, removed at 10;
+    // a scale of object 7, never placed, is refused.
+    let text = "[[step]]\nframe = 2\naction = \"place\"\nobject = 5\npixel = [248.0, 426.0]\n\n\
+                [[step]]\nframe = 6\naction = \"scale\"\nobject = 5\nscale = 2.0\n\n\
+                [[step]]\nframe = 6\naction = \"scale\"\nobject = 7\nscale = 2.0\n\n\
+                [[step]]\nframe = 10\naction = \"remove\"\nobject = 5\n";
+    std::fs::write(&script, text).unwrap();
+    let out_dir = out.path().join("run");
+    let (script, out_dir) = (script.to_str().unwrap(), out_dir.to_str().unwrap());
+    let run = sim(&["demo", "--frames", "14", "--anchors", script, "--out", out_dir]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("AR: 1 objects from frame 2"), "{stdout}");
+    assert!(stdout.contains("1 of 4 script steps refused"), "{stdout}");
+    let text = std::fs::read_to_string(Path::new(out_dir).join("report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let ar = &report["ar"];
+    let events = ar["events"].as_array().unwrap();
+    let refused: Vec<_> = events.iter().map(|e| e["refused"].as_str()).collect();
+    assert_eq!(refused, [None, None, Some("UnknownObject"), None], "{ar}");
+    // Placed at the processing pixel the sensor pixel is; drawn frames 2 to 9 only, within a
+    // pixel of where it belongs.
+    assert_eq!(ar["anchors"][0]["pixel"], serde_json::json!([123.75, 212.75]));
+    assert_eq!(ar["error_px"]["count"], 8, "{ar}");
+    assert!(ar["error_px"]["max"].as_f64().unwrap() < 1.0, "{ar}");
+    let pixels = std::fs::read_to_string(Path::new(out_dir).join("ar/pixels.csv")).unwrap();
+    let frames: Vec<&str> = pixels.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+    assert_eq!(frames, ["2", "3", "4", "5", "6", "7", "8", "9"]);
+    // A bad script is refused before anything runs, naming the file and the step's line.
+    std::fs::write(script, "[[step]]\nframe = 1\naction = \"place\"\nobject = 0\n").unwrap();
+    let run = sim(&["demo", "--frames", "3", "--anchors", script, "--out", out_dir]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("anchors.toml, step at line 1: a place needs"),
+        "{}",
+        stderr(&run)
+    );
+}
+
+#[test]
 fn decode_serial_prints_poses_and_counts_losses() {
     use ferroslam_core::frame::TelemetrySink;
     use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, StatusMessage, TrackingState};

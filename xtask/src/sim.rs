@@ -10,7 +10,7 @@ use ferroslam_sim::dataset::{CalibrationOrigin, CalibrationSource, DatasetOption
 use ferroslam_sim::replay::{Replay, ReplayOptions};
 use ferroslam_sim::report::RunOutputs;
 use ferroslam_sim::report::summary;
-use ferroslam_sim::run::TrackMode;
+use ferroslam_sim::run::{ArPlan, TrackMode};
 
 /// Replays `dataset` (with `calibration`, else its own) at QVGA from its first frame in `mode`
 /// into `out`, as `ferroslam-sim replay` does; fails when a frame was not tracked or the ATE RMSE
@@ -63,7 +63,7 @@ fn replay_qvga(
             ..DatasetOptions::default()
         },
         // SLAM replays place the two AR objects too (issue 49): it changes no pose.
-        ar: matches!(mode, TrackMode::Slam { .. }),
+        ar: matches!(mode, TrackMode::Slam { .. }).then_some(ArPlan::Paper),
         ..ReplayOptions::new(Some(mode))
     };
     let replay = Replay::open(dataset, options)?;

@@ -174,10 +174,12 @@ fn replay_one(opts: &Options, out: &Path, run: &Run) -> Result<Ate> {
     let args = run_args(opts, out, run);
     let outputs = if opts.demo {
         let args = DemoArgs::from_args(args)?;
-        demo(&args.out, &DemoOptions { progress_bar: false, ..args.options() })
+        args.options().and_then(|o| demo(&args.out, &DemoOptions { progress_bar: false, ..o }))
     } else {
         let args = ReplayArgs::from_args(args)?;
-        replay(&args.dataset, &args.out, ReplayOptions { progress_bar: false, ..args.options() })
+        args.options().and_then(|o| {
+            replay(&args.dataset, &args.out, ReplayOptions { progress_bar: false, ..o })
+        })
     };
     let report = outputs.with_context(|| format!("replay {run:?} failed"))?.report;
     let final_m = report.ate_rmse_m.with_context(|| {
@@ -346,7 +348,7 @@ mod tests {
             (parsed.dataset.as_path(), parsed.out.as_path()),
             (Path::new("d"), Path::new("o"))
         );
-        let o = parsed.options();
+        let o = parsed.options().unwrap();
         assert_eq!((o.mode, o.seed), (Some(TrackMode::SLAM), Some(3)));
         assert_eq!(o.dataset.calibration, CalibrationSource::Path("c.toml".into()));
         assert_eq!((o.dataset.skip_frames, o.dataset.depth_level), (50, Some(0)));
@@ -354,7 +356,7 @@ mod tests {
         let odometry = Run { mode: "odometry", seed: None, skip: 0 };
         let demo_opts = parse_args(&["--demo".to_owned()]).unwrap();
         let parsed = DemoArgs::from_args(run_args(&demo_opts, Path::new("o"), &odometry)).unwrap();
-        assert_eq!(parsed.options().mode, Some(TrackMode::Odometry));
+        assert_eq!(parsed.options().unwrap().mode, Some(TrackMode::Odometry));
 
         // Replay arguments the CLI refuses are refused here, with its message.
         let bad = parse_args(&["--".to_owned(), "--depth-level".to_owned(), "3".to_owned()]);

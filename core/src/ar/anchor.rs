@@ -10,6 +10,7 @@ use crate::image::DepthView;
 /// Why [`Anchor::place`] placed nothing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum AnchorError {
     /// The pixel is outside the image or not finite.
     OutsideImage,
@@ -22,6 +23,12 @@ pub enum AnchorError {
     Behind,
     /// The scale is not finite and positive.
     InvalidScale,
+    /// The frame was not tracked: its pose says nothing about where the pixel is.
+    NotTracked,
+    /// Every anchor slot holds another object (`capacity::MAX_ANCHORS`).
+    Full,
+    /// No object with that id is placed.
+    UnknownObject,
 }
 
 /// A virtual object on a plane: its position, the plane's normal (its up) in the world frame, and

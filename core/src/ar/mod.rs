@@ -12,17 +12,21 @@
 //!   surface as. Built from the keyframes' final poses, it follows bundle adjustment and loops.
 //! - [`Anchor`]: a virtual object placed by a pixel of a frame where its ray meets the plane under
 //!   it, drawn where a camera pose projects it.
+//! - [`Anchors`]: the placed objects, changed by [`AnchorCommand`]s (place, scale, remove), each
+//!   following the keyframe it was placed against through bundle adjustment and loop corrections.
 //!
 //! Why these choices and thresholds, and what they measured: docs/decisions.md, "Planes from a
-//! grid of cells on depth". Anchors that follow their plane through loop corrections, planes
-//! and anchors saved with the map, and the firmware's side are to come (issue 49).
+//! grid of cells on depth". Planes and anchors saved with the map, and the firmware's side, are to
+//! come (issue 49).
 
 mod anchor;
+mod anchors;
 mod eigen;
 mod plane_map;
 mod planes;
 
 pub use anchor::{Anchor, AnchorError};
+pub use anchors::{AnchorCommand, Anchors, PlacingFrame};
 pub use plane_map::{MAX_MAP_PLANES, MapPlane, Observed, PlaneMap, PlaneMergeParams};
 pub use planes::{
     FramePlanes, MAX_FRAME_PLANES, PLANE_GRID, Plane, PlaneDetector, PlaneError, PlaneParams,

@@ -294,3 +294,102 @@ fn an_anchor_stands_where_the_pixel_ray_meets_the_plane_under_it() {
         Err(AnchorError::NoDepth)
     );
 }
+
+/// A scene placed against keyframe `k` at `t_wk`, the frame seen from the keyframe itself.
+fn placing_frame<'a>(
+    view: &'a DepthView<'a>,
+    cam: &'a PinholeCamera,
+    t_wc: &'a Pose,
+    planes: &'a [Plane],
+    k: crate::map::KeyFrameId,
+) -> PlacingFrame<'a> {
+    PlacingFrame { depth: view, cam, t_wc, planes, reference: Some(k) }
+}
+
+#[test]
+fn anchors_are_placed_scaled_moved_and_removed_by_commands() {
+    let cam = cam();
+    let depth = render(&cam, &floor_and_wall(), 0.0, 5);
+    let view = DepthView::new(ImageView::packed(&depth, 320, 240).unwrap(), 1000.0).unwrap();
+    let planes = detect(&cam, &depth);
+    let t_wc = Pose::identity();
+    let mut keyframes = crate::map::Arena::<(), 2>::new();
+    let k = crate::map::KeyFrameId(keyframes.insert(()).unwrap());
+    let frame = placing_frame(&view, &cam, &t_wc, &planes, k);
+    let mut anchors = Anchors::new();
+    let place = |object, pixel| AnchorCommand::Place { object, pixel, scale: 1.0 };
+    let floor = anchors.apply(&place(3, [160.0, 220.0]), Some(&frame)).unwrap();
+    anchors.apply(&place(9, [160.0, 40.0]), Some(&frame)).unwrap();
+    assert_eq!(anchors.iter().map(|a| a.object).collect::<std::vec::Vec<_>>(), [3, 9]);
+    // A scale changes the scale only.
+    let scaled = anchors.apply(&AnchorCommand::Scale { object: 3, scale: 2.5 }, None).unwrap();
+    assert_eq!((scaled.p_w, scaled.scale), (floor.p_w, 2.5));
+    // Placing an object again moves it; the order of first placement is kept.
+    let moved = anchors.apply(&place(3, [100.0, 200.0]), Some(&frame)).unwrap();
+    assert_ne!(moved.p_w, floor.p_w);
+    assert_eq!(anchors.get(3), Some(&moved));
+    assert_eq!(anchors.iter().map(|a| a.object).collect::<std::vec::Vec<_>>(), [3, 9]);
+    // Errors change nothing.
+    let before = anchors.clone();
+    let bad = [
+        (anchors.apply(&place(4, [160.0, 220.0]), None), AnchorError::NotTracked),
+        (anchors.apply(&place(3, [-5.0, 0.0]), Some(&frame)), AnchorError::OutsideImage),
+        (anchors.scale(3, f32::NAN), AnchorError::InvalidScale),
+        (anchors.scale(5, 2.0), AnchorError::UnknownObject),
+        (anchors.remove(5), AnchorError::UnknownObject),
+    ];
+    for (result, error) in bad {
+        assert_eq!(result, Err(error));
+    }
+    assert_eq!(
+        anchors.iter().collect::<std::vec::Vec<_>>(),
+        before.iter().collect::<std::vec::Vec<_>>()
+    );
+    assert_eq!(anchors.remove(3).unwrap().object, 3);
+    assert_eq!(anchors.iter().map(|a| a.object).collect::<std::vec::Vec<_>>(), [9]);
+    // Full: the slots hold other objects; a placed object may still move.
+    for object in 10..10 + crate::config::capacity::MAX_ANCHORS as u16 - 1 {
+        anchors.apply(&place(object, [160.0, 220.0]), Some(&frame)).unwrap();
+    }
+    assert_eq!(anchors.apply(&place(99, [160.0, 220.0]), Some(&frame)), Err(AnchorError::Full));
+    assert!(anchors.apply(&place(9, [150.0, 210.0]), Some(&frame)).is_ok());
+}
+
+#[test]
+fn a_loop_correction_moves_the_anchors_of_the_active_map_only() {
+    let cam = cam();
+    let depth = render(&cam, &floor_and_wall(), 0.0, 6);
+    let view = DepthView::new(ImageView::packed(&depth, 320, 240).unwrap(), 1000.0).unwrap();
+    let planes = detect(&cam, &depth);
+    let t_wc = Pose::from_parts(
+        nalgebra::Translation3::new(0.5, -0.2, 1.0),
+        UnitQuaternion::from_euler_angles(0.1, -0.3, 0.2),
+    );
+    let mut keyframes = crate::map::Arena::<(), 2>::new();
+    let (active, retired) = (
+        crate::map::KeyFrameId(keyframes.insert(()).unwrap()),
+        crate::map::KeyFrameId(keyframes.insert(()).unwrap()),
+    );
+    let mut anchors = Anchors::new();
+    let moved = anchors
+        .place(1, 1.0, (160.0, 220.0), &placing_frame(&view, &cam, &t_wc, &planes, active))
+        .unwrap();
+    let kept = anchors
+        .place(2, 1.0, (160.0, 40.0), &placing_frame(&view, &cam, &t_wc, &planes, retired))
+        .unwrap();
+    let correction = Pose::from_parts(
+        nalgebra::Translation3::new(0.3, 0.1, -0.05),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.2),
+    );
+    anchors.correct(&correction, |k| k == active);
+    let a = anchors.get(1).unwrap();
+    let expected = correction * Point3::from(moved.p_w);
+    assert!((Point3::from(a.p_w) - expected).norm() < 1e-5, "{a:?}");
+    let up = correction.rotation * Vector3::from(moved.up_w);
+    assert!((Vector3::from(a.up_w) - up).norm() < 1e-5);
+    // Drawn at its pixel from the corrected placing pose, as from the pose before.
+    let [u, v] = a.pixel(&(correction * t_wc), &cam).unwrap();
+    assert!((u - 160.0).abs() < 1e-2 && (v - 220.0).abs() < 1e-2, "({u}, {v})");
+    // The retired keyframe's anchor belongs to the remembered places: it stays.
+    assert_eq!(anchors.get(2), Some(&kept));
+}

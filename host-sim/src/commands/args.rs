@@ -6,7 +6,8 @@ use std::ffi::OsString;
 use clap::{Args, FromArgMatches, ValueEnum};
 use ferroslam_core::config::{QVGA, Resolution, VGA};
 
-use crate::run::{MapScale, Schedule, TrackMode};
+use crate::anchor_script::AnchorScript;
+use crate::run::{ArPlan, MapScale, Schedule, TrackMode};
 
 /// The processing resolution.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -103,4 +104,20 @@ where
         A::augment_args(clap::Command::new(name).bin_name(format!("ferroslam-sim {name}")));
     let argv = std::iter::once(OsString::from(name)).chain(args.into_iter().map(Into::into));
     A::from_arg_matches(&command.try_get_matches_from(argv)?)
+}
+
+/// The AR plan of `--ar` and `--anchors FILE` (the script wins: it replaces the paper's
+/// objects), its pixels brought `downsample_levels` halvings down to the processing resolution.
+///
+/// # Errors
+/// The script cannot be read or is invalid.
+pub(super) fn ar_plan(
+    paper: bool,
+    script: Option<&std::path::Path>,
+    downsample_levels: u8,
+) -> anyhow::Result<Option<ArPlan>> {
+    Ok(match script {
+        Some(path) => Some(ArPlan::Script(AnchorScript::load(path, downsample_levels)?)),
+        None => paper.then_some(ArPlan::Paper),
+    })
 }

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use clap::Args;
 
-use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
+use super::args::{ModeArg, ProfileArg, SlamArgs, ar_plan, depth_level_parser, parse_args};
 use crate::demo::{DemoOptions, demo, write_dataset};
 use crate::report::{RunOutputs, summary};
 use crate::synth::{SynthError, SynthOptions};
@@ -78,6 +78,11 @@ pub struct DemoArgs {
     /// they are (report.json `ar`: pixel error and jitter). SLAM mode.
     #[arg(long)]
     pub ar: bool,
+    /// Place, scale and remove virtual objects as this TOML script says instead of the paper's
+    /// two (`[[step]]` tables: `frame`, `action` = "place" | "scale" | "remove", `object`,
+    /// `pixel = [u, v]` in the sensor's pixels, `scale`); measured as `--ar` is. SLAM mode.
+    #[arg(long, value_name = "FILE")]
+    pub anchors: Option<PathBuf>,
 }
 
 impl DemoArgs {
@@ -127,7 +132,7 @@ impl DemoArgs {
     /// # Errors
     /// The first option out of its range.
     pub fn check(&self) -> Result<()> {
-        let Err(e) = self.options().synth.validate() else { return Ok(()) };
+        let Err(e) = self.synth_options().validate() else { return Ok(()) };
         let SynthError::InvalidOption { name, reason } = &e else { return Err(e.into()) };
         let (flag, value) = match *name {
             "frames" => ("--frames", self.frames.to_string()),
@@ -143,8 +148,24 @@ impl DemoArgs {
     }
 
     /// The demo these arguments ask for, with a progress bar.
-    pub fn options(&self) -> DemoOptions {
-        let synth = SynthOptions {
+    ///
+    /// # Errors
+    /// The `--anchors` script cannot be read or is invalid.
+    pub fn options(&self) -> Result<DemoOptions> {
+        let profile = self.profile.profile();
+        Ok(DemoOptions {
+            synth: self.synth_options(),
+            profile,
+            skip_frames: self.skip_frames,
+            depth_level: self.depth_level,
+            ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
+            ..DemoOptions::new(self.mode.track_mode(&self.slam))
+        })
+    }
+
+    /// The rendered sequence these arguments ask for.
+    fn synth_options(&self) -> SynthOptions {
+        SynthOptions {
             frames: self.frames,
             depth_noise_k: self.depth_noise,
             hole_fraction: self.holes,
@@ -155,14 +176,6 @@ impl DemoArgs {
             width: self.size.0,
             height: self.size.1,
             ..SynthOptions::default()
-        };
-        DemoOptions {
-            synth,
-            profile: self.profile.profile(),
-            skip_frames: self.skip_frames,
-            depth_level: self.depth_level,
-            ar: self.ar,
-            ..DemoOptions::new(self.mode.track_mode(&self.slam))
         }
     }
 }
@@ -175,12 +188,12 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     args.check()?;
     if let Some(dir) = &args.write_dataset {
         let made_by = format!("ferroslam-sim demo {}", args.synth_flags());
-        let frames = write_dataset(dir, &args.options(), &made_by)?;
+        let frames = write_dataset(dir, &args.options()?, &made_by)?;
         println!("demo: wrote {frames} rendered frames as a TUM RGB-D folder in {}", dir.display());
         return Ok(());
     }
     let out = &args.out;
-    let RunOutputs { report, evaluation, wall_s } = demo(out, &args.options())?;
+    let RunOutputs { report, evaluation, wall_s } = demo(out, &args.options()?)?;
     if args.mode != ModeArg::DataPath {
         println!("demo: {}", summary(&report, wall_s));
         println!("  wrote {}", out.display());

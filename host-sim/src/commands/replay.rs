@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
+use super::args::{ModeArg, ProfileArg, SlamArgs, ar_plan, depth_level_parser, parse_args};
 use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
 use crate::replay::{
@@ -84,6 +84,11 @@ pub struct ReplayArgs {
     /// placing frame's depth and true pose put them (report.json `ar`). SLAM mode.
     #[arg(long)]
     pub ar: bool,
+    /// Place, scale and remove virtual objects as this TOML script says instead of the paper's
+    /// two (`[[step]]` tables: `frame`, `action` = "place" | "scale" | "remove", `object`,
+    /// `pixel = [u, v]` in the recording's pixels, `scale`); measured as `--ar` is. SLAM mode.
+    #[arg(long, value_name = "FILE")]
+    pub anchors: Option<PathBuf>,
 }
 
 impl ReplayArgs {
@@ -101,21 +106,25 @@ impl ReplayArgs {
     }
 
     /// The replay these arguments ask for, with a progress bar.
-    pub fn options(&self) -> ReplayOptions {
+    ///
+    /// # Errors
+    /// The `--anchors` script cannot be read or is invalid.
+    pub fn options(&self) -> Result<ReplayOptions> {
+        let profile = self.profile.profile();
         let dataset = DatasetOptions {
             calibration: match (&self.preset, &self.calibration) {
                 (Some(name), _) => CalibrationSource::Preset(name.clone()),
                 (None, Some(path)) => CalibrationSource::Path(path.clone()),
                 (None, None) => CalibrationSource::File,
             },
-            profile: self.profile.profile(),
+            profile,
             skip_frames: self.skip_frames,
             max_frames: self.max_frames,
             frames: self.frames.clone(),
             depth_level: self.depth_level,
             ..DatasetOptions::default()
         };
-        ReplayOptions {
+        Ok(ReplayOptions {
             dataset,
             seed: self.seed,
             maps: MapFiles {
@@ -124,9 +133,9 @@ impl ReplayArgs {
                 localize: self.localize,
             },
             strict: self.strict,
-            ar: self.ar,
+            ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
-        }
+        })
     }
 }
 
@@ -138,7 +147,7 @@ impl ReplayArgs {
 /// Any dataset error (it names the file and line); with `--strict`, a frame skipped; a file that
 /// cannot be written.
 pub fn run(args: &ReplayArgs) -> Result<()> {
-    let replay = Replay::open(&args.dataset, args.options())?;
+    let replay = Replay::open(&args.dataset, args.options()?)?;
     if let Some(text) = skipped_frames_text(replay.dataset(), SKIPPED_FRAMES_SHOWN) {
         eprintln!("warning: {text}\n  (report.json lists them; --strict refuses to run instead)");
     }

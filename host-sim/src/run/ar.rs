@@ -1,14 +1,22 @@
-//! AR in a run (`--ar`, issue 49): the paper's two objects placed on the two largest planes of
-//! the first tracked frame that shows two, each at the pixel of its plane's centroid, then drawn
-//! in every later frame at the pixel the frame's output pose projects it to (what the board
+//! AR in a run (`--ar`, `--anchors`, issue 49): virtual objects placed, scaled and removed
+//! ([`ArPlan`]: the paper's two objects on the two largest planes of the first tracked frame
+//! that shows two, each at the pixel of its plane's centroid; or a user's script), moved by loop
+//! corrections with the map they were placed in (`ferroslam_core::ar::Anchors`),
+//! then drawn in every frame at the pixel the frame's output pose projects it to (what the board
 //! would draw), and, on every [`OVERLAY_EVERY`]th frame, over the camera image as a wireframe
 //! cube standing on its plane, hidden where the real depth is nearer.
 
-use ferroslam_core::ar::{Anchor, FramePlanes, PlaneDetector, PlaneParams};
+use ferroslam_core::ar::{
+    Anchor, AnchorCommand, AnchorError, Anchors, FramePlanes, PlacingFrame, PlaneDetector,
+    PlaneParams,
+};
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
+use ferroslam_core::map::KeyFrameId;
 use nalgebra::Point3;
 use serde::Serialize;
+
+use crate::anchor_script::AnchorScript;
 
 /// The paper's objects: two, at their own size.
 const OBJECTS: u16 = 2;
@@ -22,77 +30,190 @@ const CUBE_SIDE_M: f32 = 0.15;
 /// Its colours, by object id (red, blue, then green).
 const COLOURS: [[u8; 3]; 3] = [[230, 40, 40], [40, 90, 240], [40, 200, 60]];
 
-/// Places the objects once, then records where each frame draws them.
+/// Which objects a run places.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum ArPlan {
+    /// The paper's two objects, on the two largest planes of the first tracked frame showing two.
+    #[default]
+    Paper,
+    /// A user's script (`--anchors FILE`).
+    Script(AnchorScript),
+}
+
+/// An output frame as the anchors see it.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ArFrame {
+    /// Frame index, 0-based as played.
+    pub index: usize,
+    /// Its output camera-to-world pose.
+    pub t_wc: Pose,
+    /// Whether it was tracked (a lost frame places nothing).
+    pub tracked: bool,
+    /// The keyframe it was tracked against.
+    pub reference: Option<KeyFrameId>,
+    /// The correction a loop closed in this frame moved the active map by.
+    pub loop_correction: Option<Pose>,
+}
+
+/// Places the objects, applies the script, then records where each frame draws them.
 #[derive(Debug)]
 pub(super) struct ArRecorder {
     detector: Box<PlaneDetector>,
     params: PlaneParams,
-    run: Option<ArRun>,
+    plan: ArPlan,
+    /// Script steps applied so far.
+    applied: usize,
+    anchors: Anchors,
+    /// The entry of [`ArRun::anchors`] each placed object is drawn as, by object.
+    entries: Vec<(u16, usize)>,
+    run: ArRun,
 }
 
 impl ArRecorder {
-    /// Detection with the sensor model `params` holds.
-    pub(super) fn new(params: PlaneParams) -> Self {
-        Self { detector: Box::new(PlaneDetector::new()), params, run: None }
+    /// Detection with the sensor model `params` holds, placing as `plan` says.
+    pub(super) fn new(params: PlaneParams, plan: ArPlan) -> Self {
+        Self {
+            detector: Box::new(PlaneDetector::new()),
+            params,
+            plan,
+            applied: 0,
+            anchors: Anchors::new(),
+            entries: Vec::new(),
+            run: ArRun::default(),
+        }
     }
 
-    /// Frame `index` (0-based, as played) was output at `t_wc`, tracked or not: places the
-    /// objects when none are yet and the frame is `tracked` and shows two planes, then records
-    /// where the frame draws them.
+    /// Frame `f` was output: moves the anchors with a loop correction (`in_map`: whether the
+    /// active map holds a keyframe), applies what the plan says for this frame, then records
+    /// where the frame draws every placed object.
     pub(super) fn frame(
         &mut self,
-        index: usize,
+        f: &ArFrame,
         frame: &RgbdFrame<'_>,
         cam: &PinholeCamera,
-        t_wc: &Pose,
-        tracked: bool,
+        in_map: impl Fn(KeyFrameId) -> bool,
     ) {
-        if self.run.is_none() && tracked {
-            self.run = self.place(index, frame, cam, t_wc);
+        if let Some(correction) = &f.loop_correction {
+            self.anchors.correct(correction, in_map);
         }
-        if let Some(run) = &mut self.run {
-            run.drawn.push(run.anchors.iter().map(|a| a.anchor.pixel(t_wc, cam)).collect());
-            if (index - run.frame).is_multiple_of(OVERLAY_EVERY) {
-                let overlay = overlay(frame, cam, t_wc, &run.anchors);
-                run.overlays.push((index, overlay));
+        let commands = self.commands(f, frame, cam);
+        if !commands.is_empty() {
+            let mut planes = FramePlanes::new();
+            let detected = self.detector.detect(&frame.depth, cam, &self.params, &mut planes);
+            let placing = PlacingFrame {
+                depth: &frame.depth,
+                cam,
+                t_wc: &f.t_wc,
+                planes: &planes,
+                reference: f.reference,
+            };
+            let usable = (f.tracked && detected.is_ok()).then_some(&placing);
+            // Tried on a copy: the paper's objects are placed together or not at all.
+            let mut anchors = self.anchors.clone();
+            let results: Vec<_> = commands.iter().map(|(c, _)| anchors.apply(c, usable)).collect();
+            if matches!(self.plan, ArPlan::Script(_)) || results.iter().all(Result::is_ok) {
+                self.anchors = anchors;
+                for ((command, line), result) in commands.iter().zip(results) {
+                    self.record(f.index, command, *line, result, frame);
+                }
+            }
+        }
+        if self.run.anchors.is_empty() {
+            return;
+        }
+        let mut drawn = vec![None; self.run.anchors.len()];
+        for a in self.anchors.iter() {
+            if let Some(&(_, entry)) = self.entries.iter().find(|(o, _)| *o == a.object) {
+                drawn[entry] = a.pixel(&f.t_wc, cam);
+            }
+        }
+        self.run.drawn.push(drawn);
+        if (f.index - self.run.frame).is_multiple_of(OVERLAY_EVERY) {
+            let shown: Vec<Anchor> = self.anchors.iter().copied().collect();
+            self.run.overlays.push((f.index, overlay(frame, cam, &f.t_wc, &shown)));
+        }
+    }
+
+    /// The commands of frame `f`, with their script lines (the paper's plan: the two objects on
+    /// the two largest planes, once a tracked frame shows two).
+    fn commands(
+        &mut self,
+        f: &ArFrame,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+    ) -> Vec<(AnchorCommand, Option<usize>)> {
+        match &self.plan {
+            ArPlan::Script(script) => {
+                let due = script.steps[self.applied..].iter().take_while(|s| s.frame <= f.index);
+                let commands: Vec<_> = due.map(|s| (s.command, Some(s.line))).collect();
+                self.applied += commands.len();
+                commands
+            }
+            ArPlan::Paper if !self.run.anchors.is_empty() || !f.tracked => Vec::new(),
+            ArPlan::Paper => {
+                let mut planes = FramePlanes::new();
+                if self.detector.detect(&frame.depth, cam, &self.params, &mut planes).is_err()
+                    || planes.len() < usize::from(OBJECTS)
+                {
+                    return Vec::new();
+                }
+                (0..OBJECTS)
+                    .zip(&planes)
+                    .filter_map(|(object, plane)| {
+                        let uv = cam.project(&Point3::from(plane.centroid))?;
+                        Some((
+                            AnchorCommand::Place { object, pixel: [uv.x, uv.y], scale: 1.0 },
+                            None,
+                        ))
+                    })
+                    .collect()
             }
         }
     }
 
-    fn place(
+    /// Records `command`'s outcome: a new entry for a place, the entry's end for a remove or a
+    /// move, an event for a script step.
+    fn record(
         &mut self,
         index: usize,
+        command: &AnchorCommand,
+        line: Option<usize>,
+        result: Result<Anchor, AnchorError>,
         frame: &RgbdFrame<'_>,
-        cam: &PinholeCamera,
-        t_wc: &Pose,
-    ) -> Option<ArRun> {
-        let mut planes = FramePlanes::new();
-        self.detector.detect(&frame.depth, cam, &self.params, &mut planes).ok()?;
-        if planes.len() < usize::from(OBJECTS) {
-            return None;
+    ) {
+        let object = command.object();
+        if let Some(line) = line {
+            let refused = result.as_ref().err().map(|e| format!("{e:?}"));
+            self.run.events.push(ArEvent { frame: index, line, command: *command, refused });
         }
-        let mut anchors = Vec::new();
-        for (object, plane) in (0..OBJECTS).zip(&planes) {
-            let uv = cam.project(&Point3::from(plane.centroid))?;
-            let anchor =
-                Anchor::place(object, 1.0, (uv.x, uv.y), &frame.depth, cam, t_wc, &planes).ok()?;
-            // Read as `Anchor::place` read it (it placed the object, so there is a reading).
-            let depth_m = frame.depth.depth_at(uv.x, uv.y, Anchor::MAX_RELATIVE_STEP)?;
-            anchors.push(PlacedAnchor {
-                object,
-                pixel: [uv.x, uv.y],
-                depth_m,
-                position_m: anchor.p_w,
-                up: anchor.up_w,
-                anchor,
-            });
+        let Ok(anchor) = result else { return };
+        match *command {
+            AnchorCommand::Place { pixel: [u, v], .. } => {
+                if self.run.anchors.is_empty() {
+                    self.run.frame = index;
+                }
+                let depth_m = frame.depth.depth_at(u, v, Anchor::MAX_RELATIVE_STEP).unwrap_or(0.0);
+                let entry = self.run.anchors.len();
+                self.run.anchors.push(PlacedAnchor {
+                    object,
+                    frame: index,
+                    pixel: [u, v],
+                    depth_m,
+                    position_m: anchor.p_w,
+                    up: anchor.up_w,
+                    scale: anchor.scale,
+                });
+                self.entries.retain(|(o, _)| *o != object);
+                self.entries.push((object, entry));
+            }
+            AnchorCommand::Scale { .. } => {}
+            AnchorCommand::Remove { .. } => self.entries.retain(|(o, _)| *o != object),
         }
-        Some(ArRun { frame: index, anchors, drawn: Vec::new(), overlays: Vec::new() })
     }
 
-    /// What was placed and drawn (`None`: no frame showed two planes).
+    /// What was placed and drawn (`None`: nothing placed and no script step).
     pub(super) fn finish(self) -> Option<ArRun> {
-        self.run
+        (!self.run.anchors.is_empty() || !self.run.events.is_empty()).then_some(self.run)
     }
 }
 
@@ -101,27 +222,56 @@ impl ArRecorder {
 pub struct PlacedAnchor {
     /// The object's id.
     pub object: u16,
+    /// The frame (0-based, as played) it was placed in.
+    pub frame: usize,
     /// The pixel of the placing frame, at the processing resolution.
     pub pixel: [f32; 2],
     /// The placing frame's depth at that pixel, metres.
     pub depth_m: f32,
-    /// Where it stands in the run's world frame, metres.
+    /// Where it stood when placed, in the run's world frame, metres.
     pub position_m: [f32; 3],
     /// Its up: the plane's normal in the run's world frame.
     pub up: [f32; 3],
-    /// The anchor itself.
-    #[serde(skip)]
-    pub anchor: Anchor,
+    /// Its scale when placed.
+    pub scale: f32,
 }
 
-/// The objects of an AR run and where every frame from the placing one on drew them.
+/// A script step as applied.
 #[derive(Debug, Clone, Serialize)]
-pub struct ArRun {
-    /// The frame (0-based, as played) the objects were placed in.
+pub struct ArEvent {
+    /// The frame it was applied in (0-based, as played).
     pub frame: usize,
-    /// The objects.
+    /// Its line in the script.
+    pub line: usize,
+    /// What it asked.
+    #[serde(serialize_with = "command_text")]
+    pub command: AnchorCommand,
+    /// Why nothing changed (an `AnchorError`'s name), `None` when done.
+    pub refused: Option<String>,
+}
+
+fn command_text<S: serde::Serializer>(c: &AnchorCommand, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&match *c {
+        AnchorCommand::Place { object, pixel: [u, v], scale } => {
+            format!("place {object} at ({u:.2}, {v:.2}) px, scale {scale}")
+        }
+        AnchorCommand::Scale { object, scale } => format!("scale {object} to {scale}"),
+        AnchorCommand::Remove { object } => format!("remove {object}"),
+    })
+}
+
+/// The objects of an AR run and where every frame from the first placing one on drew them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ArRun {
+    /// The frame (0-based, as played) the first object was placed in.
+    pub frame: usize,
+    /// Every placement, in order (an object placed again is a new entry; the old one is no
+    /// longer drawn).
     pub anchors: Vec<PlacedAnchor>,
-    /// Per frame from `frame` on, per object: the pixel drawn (`None`: behind the camera).
+    /// The script's steps as applied, with their outcomes (empty for the paper's objects).
+    pub events: Vec<ArEvent>,
+    /// Per frame from `frame` on, per entry of `anchors`: the pixel drawn (`None`: behind the
+    /// camera, not placed yet, removed or moved).
     #[serde(skip)]
     pub drawn: Vec<Vec<Option<[f32; 2]>>>,
     /// Every third frame from `frame` on: its index and its camera image with the
@@ -137,7 +287,7 @@ fn overlay(
     frame: &RgbdFrame<'_>,
     cam: &PinholeCamera,
     t_wc: &Pose,
-    anchors: &[PlacedAnchor],
+    anchors: &[Anchor],
 ) -> image::RgbImage {
     let (w, h) = frame.gray.size();
     let mut img = image::RgbImage::from_fn(w as u32, h as u32, |x, y| {
@@ -146,14 +296,14 @@ fn overlay(
     });
     let t_cw = t_wc.inverse();
     for a in anchors {
-        let colour = COLOURS[usize::from(a.anchor.object) % COLOURS.len()];
-        let up = nalgebra::Vector3::from(a.anchor.up_w);
+        let colour = COLOURS[usize::from(a.object) % COLOURS.len()];
+        let up = nalgebra::Vector3::from(a.up_w);
         // Any direction across the plane, then the third axis.
         let across = if up.x.abs() < 0.9 { nalgebra::Vector3::x() } else { nalgebra::Vector3::y() };
         let e1 = up.cross(&across).normalize();
         let e2 = up.cross(&e1);
-        let s = CUBE_SIDE_M * a.anchor.scale;
-        let base = nalgebra::Vector3::from(a.anchor.p_w);
+        let s = CUBE_SIDE_M * a.scale;
+        let base = nalgebra::Vector3::from(a.p_w);
         let corner = |i: usize| {
             let (x, y, z) = ((i & 1) as f32 - 0.5, ((i >> 1) & 1) as f32 - 0.5, (i >> 2) as f32);
             Point3::from(base + e1 * (x * s) + e2 * (y * s) + up * (z * s))

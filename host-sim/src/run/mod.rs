@@ -42,7 +42,7 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
     Box::new(make())
 }
 
-pub use ar::{ArRun, PlacedAnchor};
+pub use ar::{ArEvent, ArPlan, ArRun, PlacedAnchor};
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use result::{
     BackendReport, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
@@ -112,9 +112,9 @@ pub struct RunOptions {
     pub progress_bar: bool,
     /// Map files the place memory starts from and is saved to (SLAM mode).
     pub maps: MapFiles,
-    /// Place the paper's two objects on the first two planes seen and record where each frame
-    /// draws them (SLAM mode; `--ar`).
-    pub ar: bool,
+    /// Which virtual objects to place and record where each frame draws them (SLAM mode;
+    /// `--ar`, `--anchors`; `None`: no AR).
+    pub ar: Option<ArPlan>,
 }
 
 /// The map files of a SLAM run with a place memory ([`ferroslam_core::persist`]).
@@ -138,7 +138,7 @@ impl RunOptions {
             sensor: SensorModel::DEFAULT,
             progress_bar: true,
             maps: MapFiles::default(),
-            ar: false,
+            ar: None,
         }
     }
 }
@@ -198,7 +198,7 @@ where
                 frontend: slam,
                 backend,
                 places,
-                ar: options.ar,
+                ar: options.ar.clone(),
             };
             let m = &options.maps;
             match (map, vga) {

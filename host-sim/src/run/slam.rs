@@ -26,7 +26,7 @@ use ferroslam_core::tracking::{
 };
 
 use super::MapFiles;
-use super::ar::ArRecorder;
+use super::ar::{ArFrame, ArPlan, ArRecorder};
 use super::data_path::{Progress, drive};
 use super::planes::KeyframePlanes;
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
@@ -267,7 +267,7 @@ fn solve_finished(joined: std::thread::Result<Result<bool, BackendError>>) -> Re
 
 /// How a SLAM run is set up: the back end's quota per frame and schedule, the capacities of the
 /// map and back end, and the parameters of both halves.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Setup {
     /// Back-end work units after each frame.
     pub quota: u32,
@@ -281,8 +281,8 @@ pub struct Setup {
     pub backend: BackendParams,
     /// Whether the run remembers keyframes leaving the map and relocalizes in them.
     pub places: bool,
-    /// Whether the run places the paper's two objects and records where each frame draws them.
-    pub ar: bool,
+    /// Which virtual objects the run places and draws (`None`: no AR).
+    pub ar: Option<ArPlan>,
 }
 
 /// The host's place memory: the board's store capacity, in RAM.
@@ -373,7 +373,7 @@ where
     S: FrameSource,
     S::Error: std::error::Error + Send + Sync + 'static,
 {
-    let Setup { quota, schedule, scale, frontend, backend, places, ar } = *setup;
+    let Setup { quota, schedule, scale, frontend, backend, places, ar } = setup.clone();
     // A megabyte or more.
     let mut slam: Box<Slam<P>> = super::boxed(|| Slam::with_params(frontend, backend));
     // Half a megabyte; its RANSAC seeded as the front end's.
@@ -387,7 +387,7 @@ where
     let mut record = Record::default();
     let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
     let mut planes = KeyframePlanes::new(plane_params);
-    let mut anchors = ar.then(|| ArRecorder::new(plane_params));
+    let mut anchors = ar.map(|plan| ArRecorder::new(plane_params, plan));
     let mut stepper = Stepper {
         slam: &mut slam,
         places: &mut memory,
@@ -408,11 +408,18 @@ where
             return Ok(());
         }
         online.push(StampedPose { timestamp_s: frame.timestamp_s, t_wc: r.t_wc.cast::<f64>() });
-        if let Some(anchors) = &mut anchors {
-            anchors.frame(per_frame.len() - 1, frame, cam, &r.t_wc, r.tracked);
-        }
         let map = stepper.slam.map();
         let reference = r.reference_keyframe.and_then(|k| map.keyframe(k).map(|kf| (k, kf.t_wc)));
+        if let Some(anchors) = &mut anchors {
+            let f = ArFrame {
+                index: per_frame.len() - 1,
+                t_wc: r.t_wc,
+                tracked: r.tracked,
+                reference: r.reference_keyframe,
+                loop_correction: r.loop_closure.map(|l| l.correction),
+            };
+            anchors.frame(&f, frame, cam, |k| map.keyframe(k).is_some());
+        }
         relative.push(match reference {
             Some((k, t_wk)) => Relative {
                 timestamp_s: frame.timestamp_s,
