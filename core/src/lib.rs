@@ -15,7 +15,8 @@
 //!   long-term store, relocalization of a lost frame in a remembered place, verified by 3D-3D
 //!   RANSAC, and loops that bring a map restarted off the known one back onto it (drift
 //!   correction through the segment graph is to come); saved to and loaded from a map file.
-//! - [`ar`] (beside `backend`): planes detected on depth (anchors that follow them are to come).
+//! - [`ar`] (beside `backend`): planes detected on depth, and anchors for virtual objects placed
+//!   on them by commands, moved with the map when a loop closes.
 //! - [`backend`]: local bundle adjustment over a covisibility window, reference landmarks and
 //!   segmented global bundle adjustment, in bounded steps ([`backend::SolveJob`]).
 //! - [`tracking`]: the frame-to-map front end: the local map of tracked landmarks, the guide and

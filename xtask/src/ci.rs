@@ -69,6 +69,7 @@ pub fn run_all() -> Result<()> {
         cargo(&["test", "--workspace", "--exclude", "ferroslam-firmware"])?;
         cargo(&["test", "-p", "ferroslam-firmware", "--lib"])
     })?;
+    step("the library example on 7-Scenes' first frames (issue 51)", library_example)?;
     step("fuzz targets, a fixed number of inputs each", fuzz)?;
     step("faults injected on 7-Scenes (frames, serial link, store reads) at 1% and 10%", || {
         crate::faults::run(&["--json".to_owned(), path_arg(&ci_out("faults.json"))])
@@ -103,6 +104,36 @@ pub fn run_all() -> Result<()> {
         },
     )?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// Frames the library example runs on in CI.
+const EXAMPLE_FRAMES: usize = 60;
+
+/// `core/examples/track_your_frames.rs` on the first [`EXAMPLE_FRAMES`] frames of 7-Scenes: it
+/// must print one TUM pose line (8 numbers) per frame and say every frame was tracked.
+fn library_example() -> Result<()> {
+    cargo(&["build", "--release", "-p", "ferroslam-core", "--example", "track_your_frames"])?;
+    let exe = root().join("target/release/examples/track_your_frames");
+    let output = std::process::Command::new(&exe)
+        .arg(root().join(SEVEN_SCENES))
+        .arg(EXAMPLE_FRAMES.to_string())
+        .output()
+        .with_context(|| format!("could not start {}", exe.display()))?;
+    let (stdout, stderr) =
+        (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    eprint!("{stderr}");
+    if !output.status.success() {
+        bail!("the library example failed with {}", output.status);
+    }
+    let poses = stdout
+        .lines()
+        .filter(|l| l.split_whitespace().filter(|f| f.parse::<f64>().is_ok()).count() == 8)
+        .count();
+    let all_tracked = format!("{EXAMPLE_FRAMES} frames tracked, 0 not");
+    if poses != EXAMPLE_FRAMES || !stderr.contains(&all_tracked) {
+        bail!("the library example printed {poses} poses, expected {EXAMPLE_FRAMES} all tracked");
+    }
     Ok(())
 }
 
