@@ -53,7 +53,8 @@ fn main() -> Result<(), Box<dyn Error>> {
         let gray = image::open(&rgb)?.to_luma8();
         let depth = image::open(&depth)?.to_luma16();
         let (w, h) = (gray.width() as usize, gray.height() as usize);
-        if (w, h) != (calibration.width, calibration.height) || depth.dimensions() != gray.dimensions()
+        if (w, h) != (calibration.width, calibration.height)
+            || depth.dimensions() != gray.dimensions()
         {
             return Err(format!("{}: not {w}x{h} like the calibration", rgb.display()).into());
         }
@@ -164,7 +165,8 @@ fn read_list(dir: &Path, name: &str) -> Result<Vec<(f64, PathBuf)>, Box<dyn Erro
 fn associate(rgb: &[(f64, PathBuf)], depth: &[(f64, PathBuf)]) -> Vec<(f64, PathBuf, PathBuf)> {
     rgb.iter()
         .filter_map(|(t, colour)| {
-            let nearest = depth.iter().min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))?;
+            let nearest =
+                depth.iter().min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))?;
             ((nearest.0 - t).abs() <= MAX_DT_S).then(|| (*t, colour.clone(), nearest.1.clone()))
         })
         .collect()

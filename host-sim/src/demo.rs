@@ -159,7 +159,7 @@ fn track(
         report.ar = Some(ar_accuracy(sequence, options.skip_frames, ar, &cam));
     }
     if report.plane_accuracy.is_some() || report.ar.is_some() {
-        report.write(out)?;
+        report.write_with_page(out, &written.scene)?;
     }
     Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })
 }
@@ -200,7 +200,7 @@ fn data_path(
         run.frames, options.synth.width, options.synth.height, profile.name, run.width, run.height
     );
     let report = Report::data_path(&run, profile.name, &[], note);
-    report.write(out)?;
+    report.write_with_page(out, &crate::page::Scene::default())?;
     std::fs::write(out.join("baseline_eval.json"), serde_json::to_string_pretty(&evaluation)?)?;
     Ok(RunOutputs { report, evaluation: Some(evaluation), wall_s })
 }

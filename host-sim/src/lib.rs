@@ -16,6 +16,7 @@
 //! - [`anchor_script`]: `--anchors` scripts (place, scale, remove virtual objects by frame);
 //! - [`map_file`]: saved map files read and checked whole, summarized, written as PLY;
 //! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
+//! - [`page`]: report.html, the run's self-contained page with a 3D view of its map;
 //! - [`replay`] and [`demo`]: a recorded folder or the synthetic sequence opened, run and written
 //!   out, returning the typed report: what `ferroslam-sim replay` and `demo` do, which xtask
 //!   calls in process;
@@ -30,6 +31,7 @@ pub mod eval;
 pub mod faults;
 pub mod frame;
 pub mod map_file;
+pub mod page;
 pub mod plane_truth;
 pub mod plot;
 pub mod replay;

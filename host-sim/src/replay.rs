@@ -178,7 +178,7 @@ impl Replay {
                 Some(gt) => ar_accuracy_with_gt(ar, &cam, gt, &stamps, eval::DEFAULT_MAX_DT_S),
                 None => ArAccuracy::unmeasured(ar),
             });
-            report.write(out)?;
+            report.write_with_page(out, &written.scene)?;
         }
         Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })
     }
@@ -200,7 +200,7 @@ impl Replay {
             run.frames, profile.name, run.width, run.height
         );
         let report = Report::data_path(&run, profile.name, &skipped, note);
-        report.write(out)?;
+        report.write_with_page(out, &crate::page::Scene::default())?;
         if let Some(gt) = gt.filter(|g| !g.is_empty()) {
             plot_ground_truth(&gt, &out.join("trajectory.svg"))?;
         }

@@ -280,6 +280,15 @@ impl Report {
         let text = serde_json::to_string_pretty(self)?;
         std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))
     }
+
+    /// [`Self::write`], and `dir/report.html` with it and `scene` ([`crate::page`]).
+    ///
+    /// # Errors
+    /// A file that cannot be written.
+    pub fn write_with_page(&self, dir: &Path, scene: &crate::page::Scene) -> Result<()> {
+        self.write(dir)?;
+        crate::page::write_page(dir, self, scene)
+    }
 }
 
 /// What [`write_odometry`] wrote and measured.
@@ -289,6 +298,8 @@ pub struct OdometryOutputs {
     pub report: Report,
     /// The evaluation against ground truth, when there is one.
     pub evaluation: Option<EvalReport>,
+    /// The 3D view's data in report.html.
+    pub scene: crate::page::Scene,
 }
 
 /// What a replay or a demo wrote, and how long its frames took.
@@ -357,9 +368,10 @@ pub fn write_odometry(
     let mut report =
         Report::odometry(run, profile, skipped, note, evaluation.as_ref(), online_ate, sha256);
     report.evaluation_error = evaluation_error;
-    report.write(dir)?;
+    let scene = crate::page::Scene::of(run, evaluation.as_ref());
+    report.write_with_page(dir, &scene)?;
     crate::ar_files::write_ar(dir, run)?;
-    Ok(OdometryOutputs { report, evaluation })
+    Ok(OdometryOutputs { report, evaluation, scene })
 }
 
 /// The report's note on what a tracking run in `mode` did at `profile` (`width` x `height`).
@@ -369,7 +381,7 @@ pub fn run_note(mode: &TrackMode, profile: &str, (width, height): (usize, usize)
             "slam: frame-to-map front end, map and back end (local and segmented global bundle \
              adjustment, fixed work quota per frame) at {profile} ({width}x{height}); \
              CameraTrajectory.txt composes each frame's pose relative to its reference keyframe \
-             with that keyframe's final pose; no loop closure"
+             with that keyframe's final pose"
         ),
         TrackMode::Odometry => format!(
             "odometry: frame-to-map front end at {profile} ({width}x{height}), depth fused into \

@@ -269,6 +269,20 @@ fn a_short_demo_with_ar_places_two_objects_and_checks_its_planes() {
     assert_eq!(overlay.dimensions(), (320, 240));
     assert!(overlay.pixels().any(|p| p.0 == [230, 40, 40]), "the red object is drawn");
     assert!(std::fs::metadata(ar_dir.join("preview.gif")).unwrap().len() > 0);
+    // The run's page: self-contained (nothing fetched), its 3D view's data inline.
+    let page = std::fs::read_to_string(out.path().join("report.html")).unwrap();
+    for fetch in ["src=\"http", "href=\"http", "<link", "@import", "<iframe"] {
+        assert!(!page.contains(fetch), "report.html fetches nothing: {fetch}");
+    }
+    let start = page.find("<script type=\"application/json\" id=\"scene\">").unwrap();
+    let data = &page[start..];
+    let data = &data[data.find('>').unwrap() + 1..data.find("</script>").unwrap()];
+    let scene: serde_json::Value = serde_json::from_str(data).unwrap();
+    assert_eq!(scene["trajectory"].as_array().map(Vec::len), Some(15));
+    assert_eq!(scene["ground_truth"].as_array().map(Vec::len), Some(15));
+    assert_eq!(scene["anchors"].as_array().map(Vec::len), Some(2));
+    assert!(scene["points"].as_array().is_some_and(|p| p.len() > 50), "map points drawn");
+    assert!(page.contains("<svg"), "the trajectory plot is inline");
 }
 
 #[test]

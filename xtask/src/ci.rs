@@ -103,6 +103,9 @@ pub fn run_all() -> Result<()> {
             demo_objects(&ci_out("demo"))
         },
     )?;
+    step("the demo's report.html in headless Chromium: its 3D view drew (issue 51)", || {
+        crate::page_check::check(&ci_out("demo"), &ci_out("report-page.png"))
+    })?;
     eprintln!("\ncargo xtask ci: all steps passed in {:.0} s", start.elapsed().as_secs_f64());
     Ok(())
 }

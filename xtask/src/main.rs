@@ -69,6 +69,7 @@ mod faults;
 mod firmware;
 mod fuzz;
 mod heldout;
+mod page_check;
 mod paths;
 mod profile;
 mod replay;
@@ -96,6 +97,13 @@ fn main() -> ExitCode {
         Some("fuzz") => fuzz::run(&args[1..]),
         Some("faults") => faults::run(&args[1..]),
         Some("soak") => soak::run(&args[1..]),
+        Some("page-check") => match &args[1..] {
+            [dir] => {
+                let dir = std::path::Path::new(dir);
+                page_check::check(dir, &dir.join("report-page.png"))
+            }
+            _ => Err(anyhow::anyhow!("usage: cargo xtask page-check RUN_DIR")),
+        },
         _ => {
             eprintln!(
                 "usage: cargo xtask <ci | firmware-replay DATASET [--calibration FILE] [--max-frames N] \
@@ -108,7 +116,8 @@ fn main() -> ExitCode {
                  [--json FILE] [-- REPLAY ARGS] | heldout [--dataset DIR]... | \
                  fuzz [--seconds N | --iterations N] [--target NAME] [--seed S] [--replay FILE] \
                  [--write-corpus] | faults [--frames A-B,...] [--rates P,Q] [--seed S] [--strict] \
-                 [--json FILE] [--out DIR] | soak [--frames N] [--recording demo|7scenes|both] [--json FILE]> \
+                 [--json FILE] [--out DIR] | soak [--frames N] [--recording demo|7scenes|both] [--json FILE] | \
+                 page-check RUN_DIR> \
                  (the depth calibration estimator is `ferroslam-sim calibrate-depth`)"
             );
             return ExitCode::from(2);

@@ -560,6 +560,7 @@ mod tests {
             backend: None,
             planes: None,
             ar: None,
+            map_points: None,
         }
     }
 

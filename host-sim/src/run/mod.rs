@@ -17,6 +17,7 @@
 
 mod ar;
 pub mod data_path;
+mod map_points;
 mod odometry;
 mod planes;
 pub mod result;
@@ -44,6 +45,7 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
 
 pub use ar::{ArEvent, ArPlan, ArRun, PlacedAnchor};
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
+pub use map_points::MapCloud;
 pub use result::{
     BackendReport, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
 };

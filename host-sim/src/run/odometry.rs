@@ -63,6 +63,7 @@ where
         backend: None,
         planes: None,
         ar: None,
+        map_points: None,
     })
 }
 #[cfg(test)]

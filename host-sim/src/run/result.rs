@@ -150,6 +150,8 @@ pub struct TrackingRun {
     pub planes: Option<PlanesReport>,
     /// The objects placed and where each frame drew them (SLAM mode with `ar`).
     pub ar: Option<super::ar::ArRun>,
+    /// The map's points over the run (SLAM mode).
+    pub map_points: Option<super::map_points::MapCloud>,
 }
 
 /// The per-frame figures of a front-end result.

@@ -28,6 +28,7 @@ use ferroslam_core::tracking::{
 use super::MapFiles;
 use super::ar::{ArFrame, ArPlan, ArRecorder};
 use super::data_path::{Progress, drive};
+use super::map_points::MapPoints;
 use super::planes::KeyframePlanes;
 use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
 use crate::trajectory::{StampedPose, Trajectory};
@@ -388,6 +389,7 @@ where
     let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
     let mut planes = KeyframePlanes::new(plane_params);
     let mut anchors = ar.map(|plan| ArRecorder::new(plane_params, plan));
+    let (mut points, mut last_keyframe) = (MapPoints::default(), None);
     let mut stepper = Stepper {
         slam: &mut slam,
         places: &mut memory,
@@ -402,6 +404,8 @@ where
         per_frame.push(frame_figures(frame.timestamp_s, &r));
         if let Some(kf) = r.keyframe {
             planes.observe(kf, frame, cam).map_err(|e| anyhow!("plane detection: {e:?}"))?;
+            points.observe(stepper.slam.map().landmarks());
+            last_keyframe = Some(kf);
         }
         if r.state == FrontendState::Initializing {
             // No pose before the first keyframe, which defines the world frame.
@@ -435,6 +439,8 @@ where
     }
     slam.drain_backend(cam, quota, DEFAULT_DRAIN_STEPS).map_err(backend_error)?;
     record.update(&slam);
+    points.observe(slam.map().landmarks());
+    let map_points = points.finish(last_keyframe, slam.map().landmarks());
     let keyframe_pose = &record.keyframe_pose;
     let camera = relative
         .iter()
@@ -473,6 +479,7 @@ where
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
         planes: Some(planes.report(&record.keyframe_pose)),
         ar: anchors.and_then(ArRecorder::finish),
+        map_points: Some(map_points),
     })
 }
 
