@@ -4,8 +4,8 @@
 //! does (through the core's [`ferroslam_core::frame::FrameSource`] port, never a side entrance), and
 //! evaluates what comes out:
 //!
-//! - [`dataset`]: TUM RGB-D folders (lists, association, calibration, image decoding on a
-//!   read-ahead thread);
+//! - [`dataset`]: TUM RGB-D folders and MCAP recordings (lists, association, calibration, image
+//!   decoding on a read-ahead thread);
 //! - [`synth`]: a built-in synthetic RGB-D sequence with exact ground truth, rendered in code;
 //! - [`trajectory`]: TUM trajectory files;
 //! - [`eval`]: ATE and RPE as evo computes them;

@@ -213,6 +213,22 @@ impl Trajectory {
         Ok(Self { poses })
     }
 
+    /// The values of each pose line of a TUM trajectory file's text as written, `[t, tx, ty, tz,
+    /// qx, qy, qz, qw]` (the quaternion not normalized: what [`StampedPose::from_tum_values`]
+    /// takes), after checking the text as [`Trajectory::parse_tum`] does.
+    ///
+    /// # Errors
+    /// As [`Trajectory::parse_tum`].
+    pub fn parse_tum_values(text: &str, path: &Path) -> Result<Vec<[f64; 8]>, TrajectoryError> {
+        Self::parse_tum(text, path)?;
+        Ok(text
+            .lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'))
+            .filter_map(|l| tum_line_values(l).ok())
+            .collect())
+    }
+
     /// The trajectory as TUM text (format in the [module docs](self)); deterministic.
     pub fn to_tum_string(&self) -> String {
         let mut out = String::with_capacity(self.poses.len() * 96);
@@ -256,6 +272,13 @@ fn fixed(v: f64, decimals: usize) -> String {
 
 /// Parses one non-comment, non-blank TUM line.
 fn parse_tum_line(line: &str) -> Result<StampedPose, LineProblem> {
+    let [t, tx, ty, tz, qx, qy, qz, qw] = tum_line_values(line)?;
+    StampedPose::from_tum_values(t, [tx, ty, tz], [qx, qy, qz, qw])
+        .ok_or(LineProblem::ZeroQuaternion)
+}
+
+/// The eight finite numbers of a TUM line, as written (quaternion not normalized).
+fn tum_line_values(line: &str) -> Result<[f64; 8], LineProblem> {
     let mut values = [0.0_f64; 8];
     let mut found = 0;
     for (i, field) in line.split_whitespace().enumerate() {
@@ -270,9 +293,7 @@ fn parse_tum_line(line: &str) -> Result<StampedPose, LineProblem> {
     if values.iter().any(|v| !v.is_finite()) {
         return Err(LineProblem::NotFinite);
     }
-    let [t, tx, ty, tz, qx, qy, qz, qw] = values;
-    StampedPose::from_tum_values(t, [tx, ty, tz], [qx, qy, qz, qw])
-        .ok_or(LineProblem::ZeroQuaternion)
+    Ok(values)
 }
 
 #[cfg(test)]

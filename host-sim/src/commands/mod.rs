@@ -5,6 +5,8 @@
 //!                    [--holes F] [--blur N] [--shake A] [--fast-rotation] [--seed S]
 //! ferroslam-sim replay DATASET --out DIR [--profile qvga|vga] [--mode odometry|data-path]
 //!                      [--preset tum1|tum2|tum3] [--max-frames N] [--strict]
+//! ferroslam-sim replay FILE.mcap --out DIR [--rgb-topic T] [--depth-topic T] [...]
+//! ferroslam-sim convert DATASET --mcap OUT             a TUM folder as an MCAP recording
 //! ferroslam-sim eval GROUNDTRUTH ESTIMATE [--json]     ATE/RPE, evo-compatible
 //! ferroslam-sim decode-serial FILE [--tum]             the firmware's UART capture: poses, losses
 //! ferroslam-sim calibrate-depth DATASET --out FILE [--check FILE] [--start N] [--step N]
@@ -17,6 +19,7 @@
 
 pub mod args;
 pub mod calibrate_depth;
+pub mod convert;
 pub mod decode_serial;
 pub mod demo;
 pub mod map;
@@ -42,8 +45,11 @@ struct Cli {
 enum Command {
     /// Render the built-in synthetic RGB-D sequence and run it through the core (no files needed).
     Demo(demo::DemoArgs),
-    /// Run a recorded TUM-layout RGB-D folder through the core.
+    /// Run a recorded TUM-layout RGB-D folder or MCAP file through the core.
     Replay(replay::ReplayArgs),
+    /// Write a TUM-layout RGB-D folder as an MCAP recording (ROS 2 messages in CDR) whose replay
+    /// gives the same bits.
+    Convert(convert::ConvertArgs),
     /// Evaluate an estimated trajectory against ground truth (ATE after SE(3) alignment, RPE).
     Eval(EvalArgs),
     /// Decode a capture of the firmware's UART: poses, other messages, frames dropped and bytes
@@ -96,6 +102,7 @@ pub fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Replay(args) => replay::run(args),
+        Command::Convert(args) => convert::run(args),
         Command::Eval(args) => run_eval(args),
         Command::DecodeSerial(args) => decode_serial::run(args),
         Command::CalibrateDepth(args) => calibrate_depth::run(args),

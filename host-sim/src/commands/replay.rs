@@ -1,4 +1,4 @@
-//! `ferroslam-sim replay DATASET --out DIR`: a TUM-layout recording through the core: its
+//! `ferroslam-sim replay DATASET --out DIR`: a TUM-layout folder or an MCAP file through the core: its
 //! arguments, turned into [`ReplayOptions`] for the library's [`Replay`], and the console lines.
 
 use std::ffi::OsString;
@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::args::{ModeArg, ProfileArg, SlamArgs, ar_plan, depth_level_parser, parse_args};
+use crate::dataset::mcap::McapTopics;
 use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
 use crate::replay::{
@@ -19,8 +20,17 @@ use crate::run::MapFiles;
 /// Arguments of `replay`.
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// A TUM RGB-D folder: rgb.txt, depth.txt, optional groundtruth.txt, calibration.toml.
+    /// A TUM RGB-D folder (rgb.txt, depth.txt, optional groundtruth.txt, calibration.toml), or
+    /// an MCAP file (ROS 2 bag) of sensor_msgs/msg/Image and CameraInfo in CDR.
     pub dataset: PathBuf,
+    /// The MCAP file's colour topic (rgb8, bgr8, mono8). Default: the only image topic of such
+    /// images.
+    #[arg(long, value_name = "TOPIC")]
+    pub rgb_topic: Option<String>,
+    /// The MCAP file's depth topic (16UC1 millimetres, 32FC1 metres). Default: the only image
+    /// topic of such images.
+    #[arg(long, value_name = "TOPIC")]
+    pub depth_topic: Option<String>,
     /// Output folder (created if missing).
     #[arg(long)]
     pub out: PathBuf,
@@ -31,8 +41,9 @@ pub struct ReplayArgs {
     #[arg(long, conflicts_with = "calibration")]
     pub preset: Option<String>,
     /// A calibration file to use instead of the folder's calibration.toml (same format; its
-    /// optional `[depth]` table registers depth to colour). For 7-Scenes, whose own file holds
-    /// the nominal depth intrinsics only: `calibration/7scenes-kinect-v1.toml`.
+    /// optional `[depth]` table registers depth to colour), or of an MCAP file's own. For
+    /// 7-Scenes, whose own file holds the nominal depth intrinsics only:
+    /// `calibration/7scenes-kinect-v1.toml`.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
     /// Skip this many frames at the start (before `--max-frames`).
@@ -122,6 +133,7 @@ impl ReplayArgs {
             max_frames: self.max_frames,
             frames: self.frames.clone(),
             depth_level: self.depth_level,
+            topics: McapTopics { rgb: self.rgb_topic.clone(), depth: self.depth_topic.clone() },
             ..DatasetOptions::default()
         };
         Ok(ReplayOptions {

@@ -86,7 +86,11 @@ fn to_u8(v: u32) -> u8 {
 }
 
 /// Converts RGB(A) samples with `step` channels per pixel to gray with `f` mapping luma to 8 bits.
-fn rgb_to_gray<T: Copy + Into<u32>>(s: &[T], step: usize, f: impl Fn(u32) -> u8) -> Vec<u8> {
+pub(crate) fn rgb_to_gray<T: Copy + Into<u32>>(
+    s: &[T],
+    step: usize,
+    f: impl Fn(u32) -> u8,
+) -> Vec<u8> {
     s.chunks_exact(step)
         .map(|p| match p {
             [r, g, b, ..] => f(luma((*r).into(), (*g).into(), (*b).into())),
@@ -146,6 +150,35 @@ fn to_gray(
         }
     };
     Ok(gray)
+}
+
+/// A colour image's pixels as an 8-bit image message holds them (`convert --mcap`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum ColourPixels {
+    /// 8-bit red, green, blue, row-major (an RGB or RGBA image, alpha dropped).
+    Rgb8(Vec<u8>),
+    /// 8-bit gray: a gray image, or the loader's gray of any other (16-bit) image.
+    Mono8(Vec<u8>),
+}
+
+/// Decodes a colour image as 8-bit pixels from which the loader's gray follows exactly: RGB(A)
+/// 8-bit as RGB, 8-bit gray as it is, anything else as the gray [`decode_gray`] gives.
+///
+/// # Errors
+/// As [`decode_gray`].
+pub(crate) fn decode_colour(
+    path: &Path,
+    expected: (u32, u32),
+) -> Result<ColourPixels, DatasetError> {
+    let (image, format) = decode(path)?;
+    check_size(path, (image.width(), image.height()), expected)?;
+    Ok(match image {
+        DynamicImage::ImageRgb8(b) => ColourPixels::Rgb8(b.into_raw()),
+        DynamicImage::ImageRgba8(b) => ColourPixels::Rgb8(
+            b.as_raw().chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect(),
+        ),
+        other => ColourPixels::Mono8(to_gray(other, format, path, expected)?),
+    })
 }
 
 /// Decodes a 16-bit gray PNG depth image, checking its size against `expected`.

@@ -282,6 +282,14 @@ pub enum DatasetError {
         source: ImageError,
     },
 
+    /// An MCAP file could not be read as a recording (the message names the file and topic).
+    #[error(transparent)]
+    Mcap {
+        /// What is wrong.
+        #[from]
+        source: super::mcap::McapError,
+    },
+
     /// The read-ahead thread ended without delivering every frame (it panicked).
     #[error("the dataset read-ahead thread stopped after {delivered} of {len} frames")]
     ReaderStopped {

@@ -1,4 +1,9 @@
-//! TUM RGB-D folders: lists, association, calibration, and image decoding on a read-ahead thread.
+//! TUM RGB-D folders and MCAP recordings: lists, association, calibration, and image decoding on
+//! a read-ahead thread.
+//!
+//! An MCAP file (ROS 2 bag) is read through [`mcap`]: its colour and depth topics take the place
+//! of `rgb.txt` and `depth.txt` (each image's header stamp its timestamp, its number in stamp
+//! order its line), and everything below applies to it as to a folder.
 //!
 //! A dataset folder holds `rgb.txt` and `depth.txt` (`timestamp path` lines), an optional
 //! `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, camera to world) and, unless a preset or
@@ -40,10 +45,12 @@ mod calibration;
 mod decode;
 mod error;
 mod lists;
+pub mod mcap;
 mod reader;
 pub mod registration;
 pub mod selection;
 mod skipped;
+mod sources;
 #[cfg(test)]
 mod tests;
 pub mod undistort;
@@ -62,8 +69,11 @@ pub use lists::{ListEntry, parse_image_list};
 pub use reader::DatasetReader;
 use selection::{FrameSelection, SelectionError};
 pub use skipped::{SkipReason, SkippedFrame, Stream};
-use skipped::{keep_present, nearest_missing, skip};
+use skipped::{nearest_missing, skip};
+use sources::{ImageStore, Listed, open_folder, open_mcap};
 use undistort::Undistorter;
+
+use self::mcap::McapTopics;
 
 /// Ground-truth poses are the trajectory module's type (re-exported for convenience).
 pub use crate::trajectory::StampedPose;
@@ -107,6 +117,9 @@ pub struct DatasetOptions {
     /// Association limit between colour and depth timestamps, in seconds, exclusive (default: the
     /// core's `config::ASSOCIATION_MAX_DT_S`, 0.02 s).
     pub max_dt_s: f64,
+    /// The image topics of an MCAP file (`--rgb-topic`, `--depth-topic`; default: found by
+    /// their encodings, see [`mcap`]); naming one for a folder is an error.
+    pub topics: McapTopics,
 }
 
 impl Default for DatasetOptions {
@@ -119,6 +132,7 @@ impl Default for DatasetOptions {
             frames: None,
             depth_level: None,
             max_dt_s: ASSOCIATION_MAX_DT_S,
+            topics: McapTopics::default(),
         }
     }
 }
@@ -128,12 +142,18 @@ impl Default for DatasetOptions {
 pub struct AssociatedFrame {
     /// Colour timestamp in seconds (the frame's time).
     pub rgb_timestamp_s: f64,
-    /// The colour image: its list path joined to the dataset folder.
+    /// The colour image: its list path joined to the dataset folder (for an MCAP file,
+    /// `FILE:TOPIC#N`, as messages name it).
     pub rgb_path: PathBuf,
+    /// Its 1-based line in `rgb.txt` (for an MCAP file, its number on the colour topic in stamp
+    /// order).
+    pub rgb_line: usize,
     /// Depth timestamp in seconds.
     pub depth_timestamp_s: f64,
-    /// The depth image: its list path joined to the dataset folder.
+    /// The depth image: its list path joined to the dataset folder (or `FILE:TOPIC#N`).
     pub depth_path: PathBuf,
+    /// Its 1-based line in `depth.txt` (or number on the depth topic).
+    pub depth_line: usize,
 }
 
 /// An opened TUM RGB-D folder: associated frame list, calibration and ground truth. Decodes
@@ -153,11 +173,15 @@ pub struct Dataset {
     calibration_origin: CalibrationOrigin,
     /// The sensor's lens distortion removed from every frame; `None` for a pinhole sensor.
     undistorter: Option<Undistorter>,
+    /// Where the images are.
+    images: ImageStore,
 }
 
 impl Dataset {
     /// Opens the folder `dir`: reads the calibration and the lists, drops listed images that are
-    /// not on disk, associates colour to depth and applies `skip_frames`, then `max_frames`.
+    /// not on disk, associates colour to depth and applies `skip_frames`, then `max_frames`. A
+    /// path that is an MCAP file (named `*.mcap` or starting with its magic) is opened as one
+    /// instead (see [`mcap`]), and the same follows.
     ///
     /// # Errors
     /// [`DatasetError::NoFolder`] or [`DatasetError::NotAFolder`] when `dir` is not a folder,
@@ -165,34 +189,23 @@ impl Dataset {
     /// an unreadable list or a missing or unreadable calibration file (an absent `groundtruth.txt`
     /// is fine), the list and calibration errors of the module doc,
     /// [`DatasetError::ProfileSize`] when the calibrated size cannot be halved as the profile asks,
-    /// and [`DatasetError::EmptyDataset`] when no frame is left.
+    /// and [`DatasetError::EmptyDataset`] when no frame is left; [`DatasetError::Mcap`] for what
+    /// is wrong with an MCAP file, or topics named for a folder.
     pub fn open(dir: &Path, opts: &DatasetOptions) -> Result<Self, DatasetError> {
-        check_folder(dir)?;
-        let (sensor, calibration_origin) = open_calibration(dir, &opts.calibration)?;
-        let levels = opts.profile.downsample_levels;
-        let divisor = 1u32.checked_shl(u32::from(levels)).unwrap_or(0);
-        if divisor == 0 || sensor.width % divisor != 0 || sensor.height % divisor != 0 {
-            return Err(DatasetError::ProfileSize {
-                width: sensor.width,
-                height: sensor.height,
-                profile: opts.profile.name,
-                levels,
-            });
-        }
+        let listed =
+            if mcap::is_mcap_file(dir) { open_mcap(dir, opts)? } else { open_folder(dir, opts)? };
+        Self::from_listed(dir, listed, opts)
+    }
 
-        let rgb_list = dir.join("rgb.txt");
-        let depth_list = dir.join("depth.txt");
-        let rgb = lists::parse_image_list(&rgb_list, &lists::read_text(&rgb_list)?, dir)?;
-        let depth = lists::parse_image_list(&depth_list, &lists::read_text(&depth_list)?, dir)?;
-        let mut groundtruth = read_groundtruth(&dir.join("groundtruth.txt"))?;
-
-        let listed_frames = rgb.len();
+    /// Associates what `open_folder` or `open_mcap` listed, and keeps the frames `opts` asks for.
+    fn from_listed(
+        dir: &Path,
+        listed: Listed,
+        opts: &DatasetOptions,
+    ) -> Result<Self, DatasetError> {
+        let Listed { rgb_list, rgb, depth_list, depth, mut skipped, .. } = listed;
         let max_dt_s = opts.max_dt_s;
-        let mut skipped = Vec::new();
-        let rgb_present = keep_present((&rgb_list, Stream::Rgb), rgb, max_dt_s, &mut skipped);
-        let depth_present =
-            keep_present((&depth_list, Stream::Depth), depth, max_dt_s, &mut skipped);
-        let (mut frames, unpaired) = pair(&rgb_present, &depth_present, max_dt_s);
+        let (mut frames, unpaired) = pair(&rgb, &depth, max_dt_s);
         let unpaired: Vec<SkippedFrame> = unpaired
             .into_iter()
             .map(|(stream, entry)| {
@@ -206,6 +219,7 @@ impl Dataset {
         skipped.extend(unpaired);
         skipped.sort_by(|a, b| a.list.cmp(&b.list).then(a.line.cmp(&b.line)));
         let associated = frames.len();
+        let mut groundtruth = listed.groundtruth;
         if let Some(selection) = &opts.frames {
             let played = select(&frames, groundtruth.as_ref(), selection, opts.max_dt_s)
                 .map_err(|e| DatasetError::Selection { dir: dir.to_owned(), source: e })?;
@@ -221,8 +235,8 @@ impl Dataset {
                 "{} colour and {} depth images on disk ({missing} listed but missing), {} \
                  associated within {} s, {} skipped at the start (--skip-frames), {} kept \
                  (--max-frames)",
-                rgb_present.len(),
-                depth_present.len(),
+                rgb.len(),
+                depth.len(),
                 associated,
                 opts.max_dt_s,
                 opts.skip_frames,
@@ -230,6 +244,8 @@ impl Dataset {
             );
             return Err(DatasetError::EmptyDataset { dir: dir.to_owned(), reason });
         }
+        let sensor = listed.sensor;
+        let levels = opts.profile.downsample_levels;
         // The frames `load_frame` gives are registered and undistorted, so their calibration has
         // no depth camera and no distortion.
         let calibration =
@@ -240,15 +256,16 @@ impl Dataset {
         Ok(Self {
             dir: dir.to_owned(),
             frames,
-            listed_frames,
+            listed_frames: listed.listed_frames,
             skipped,
             groundtruth,
             sensor,
             calibration,
             profile,
             depth_level,
-            calibration_origin,
+            calibration_origin: listed.calibration_origin,
             undistorter,
+            images: listed.images,
         })
     }
 
@@ -347,8 +364,16 @@ impl Dataset {
             .get(index)
             .ok_or(DatasetError::FrameIndex { index, len: self.frames.len() })?;
         let size = (self.sensor.width, self.sensor.height);
-        let mut gray = decode::decode_gray(&frame.rgb_path, size)?;
-        let mut depth = decode::decode_depth(&frame.depth_path, size)?;
+        let (mut gray, mut depth) = match &self.images {
+            ImageStore::Files => (
+                decode::decode_gray(&frame.rgb_path, size)?,
+                decode::decode_depth(&frame.depth_path, size)?,
+            ),
+            ImageStore::Mcap(images) => (
+                images.gray(frame.rgb_line)?,
+                images.depth(frame.depth_line, self.sensor.depth_scale)?,
+            ),
+        };
         if let Some(u) = &self.undistorter {
             gray = u.gray(&gray);
         }
@@ -395,6 +420,21 @@ pub enum CalibrationOrigin {
     Preset(String),
     /// The TUM preset the folder's name implies, the folder having no `calibration.toml`.
     FolderName(&'static str),
+    /// A calibration an MCAP file carries (what `convert` wrote): `what` is
+    /// `calibration.toml` or `preset NAME`.
+    Carried {
+        /// The MCAP file.
+        file: PathBuf,
+        /// What it carries.
+        what: String,
+    },
+    /// An MCAP file's CameraInfo.
+    CameraInfo {
+        /// The MCAP file.
+        file: PathBuf,
+        /// The CameraInfo's topic.
+        topic: String,
+    },
 }
 
 impl fmt::Display for CalibrationOrigin {
@@ -408,35 +448,12 @@ impl fmt::Display for CalibrationOrigin {
                     "preset {name} (the folder has no calibration.toml; its name says {name})"
                 )
             }
+            Self::Carried { file, what } => write!(f, "{what} carried in {}", file.display()),
+            Self::CameraInfo { file, topic } => {
+                write!(f, "{}'s CameraInfo on {topic}", file.display())
+            }
         }
     }
-}
-
-/// The sensor's calibration from `source`, and where it came from. A folder without
-/// `calibration.toml` whose name names a TUM sensor gets that sensor's preset; otherwise the
-/// missing file is an error that says how to give a calibration.
-fn open_calibration(
-    dir: &Path,
-    source: &CalibrationSource,
-) -> Result<(Calibration, CalibrationOrigin), DatasetError> {
-    Ok(match source {
-        CalibrationSource::File => {
-            let path = dir.join("calibration.toml");
-            if !path.exists() {
-                let Some(name) = Calibration::preset_for_folder(dir) else {
-                    return Err(DatasetError::NoCalibration { dir: dir.to_owned() });
-                };
-                return Ok((Calibration::preset(name)?, CalibrationOrigin::FolderName(name)));
-            }
-            (Calibration::load(&path)?, CalibrationOrigin::File(path))
-        }
-        CalibrationSource::Preset(name) => {
-            (Calibration::preset(name)?, CalibrationOrigin::Preset(name.clone()))
-        }
-        CalibrationSource::Path(path) => {
-            (Calibration::load(path)?, CalibrationOrigin::File(path.clone()))
-        }
-    })
 }
 
 /// The frames `selection` plays, renumbered, and the ground truth that follows them (see
@@ -467,44 +484,6 @@ fn select(
     Ok((played, followed))
 }
 
-/// Reads `groundtruth.txt` if it exists, with the trajectory module's TUM reader.
-fn read_groundtruth(path: &Path) -> Result<Option<Trajectory>, DatasetError> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => {
-            let trajectory = Trajectory::parse_tum(&text, path)?;
-            Ok(if trajectory.is_empty() { None } else { Some(trajectory) })
-        }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(source) => Err(DatasetError::Io { path: path.to_owned(), source }),
-    }
-}
-
-/// The lists a dataset folder must hold.
-const LISTS: [&str; 2] = ["rgb.txt", "depth.txt"];
-
-/// Checks that `dir` is a folder holding both lists, so that a wrong path is said as such
-/// rather than as the first file that cannot be read in it.
-fn check_folder(dir: &Path) -> Result<(), DatasetError> {
-    match std::fs::metadata(dir) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(DatasetError::NoFolder { dir: dir.to_owned() });
-        }
-        Err(source) => return Err(DatasetError::Io { path: dir.to_owned(), source }),
-        Ok(m) if !m.is_dir() => return Err(DatasetError::NotAFolder { dir: dir.to_owned() }),
-        Ok(_) => {}
-    }
-    for list in LISTS {
-        // Only a list that is not there at all is said so; an unreadable one is an I/O error
-        // when it is read.
-        if let Err(e) = std::fs::metadata(dir.join(list))
-            && e.kind() == std::io::ErrorKind::NotFound
-        {
-            return Err(DatasetError::NoList { dir: dir.to_owned(), list });
-        }
-    }
-    Ok(())
-}
-
 /// Associates the two streams; returns the frames and the entries left without a partner.
 fn pair<'a>(
     rgb: &'a [ListEntry],
@@ -524,8 +503,10 @@ fn pair<'a>(
         frames.push(AssociatedFrame {
             rgb_timestamp_s: c.timestamp_s,
             rgb_path: c.path.clone(),
+            rgb_line: c.line,
             depth_timestamp_s: d.timestamp_s,
             depth_path: d.path.clone(),
+            depth_line: d.line,
         });
     }
     let unpaired_rgb = rgb.iter().zip(used_rgb).filter(|(_, u)| !u).map(|(e, _)| (Stream::Rgb, e));

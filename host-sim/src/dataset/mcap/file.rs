@@ -1,0 +1,247 @@
+//! An MCAP file held in memory: its messages visited once when it is opened, and an image's bytes
+//! found again when its frame is decoded.
+//!
+//! The whole file is read into memory (a host tool; memory = the file's size). A file with a
+//! summary whose chunks all carry message indexes is read back message by message through those
+//! indexes ([`MessageAt::Chunk`]: one chunk decompressed per image); any other (no summary, no
+//! message indexes, messages outside chunks) is read start to end and the messages visited are
+//! kept decompressed ([`MessageAt::Memory`]).
+
+use std::borrow::Cow;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use mcap::read::{MessageStream, Summary};
+use mcap::records::{MessageIndexEntry, Record};
+use mcap::{Channel, Message};
+
+use super::error::McapError;
+use crate::dataset::DatasetError;
+
+/// Where a message's bytes are.
+#[derive(Debug, Clone)]
+pub enum MessageAt {
+    /// In chunk `chunk` (an index into the summary's chunk indexes), at `entry`.
+    Chunk {
+        /// Index of the chunk in the summary.
+        chunk: usize,
+        /// The message's index entry in that chunk.
+        entry: MessageIndexEntry,
+    },
+    /// Kept in memory, decompressed.
+    Memory(Arc<[u8]>),
+}
+
+/// A topic of the file: its message type, encoding and message count.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TopicInfo {
+    /// The topic.
+    pub topic: String,
+    /// Its schema's name (`sensor_msgs/msg/Image`), empty without a schema.
+    pub schema: String,
+    /// Its message encoding (`cdr`).
+    pub message_encoding: String,
+    /// Messages on it.
+    pub messages: usize,
+}
+
+/// A message visited by [`McapFile::scan`].
+#[derive(Debug)]
+pub struct Visit<'a> {
+    /// Its channel.
+    pub channel: &'a Channel<'a>,
+    /// Its bytes.
+    pub data: &'a [u8],
+    /// Where to find them again.
+    pub at: MessageAt,
+}
+
+/// An MCAP file read into memory.
+pub struct McapFile {
+    path: PathBuf,
+    bytes: Vec<u8>,
+    summary: Option<Summary>,
+    /// Whether every message can be found through the summary's indexes (set by the scan).
+    indexed: bool,
+}
+
+impl std::fmt::Debug for McapFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapFile")
+            .field("path", &self.path)
+            .field("bytes", &self.bytes.len())
+            .field("indexed", &self.indexed)
+            .finish()
+    }
+}
+
+/// The MCAP reader's error, said about `path`.
+fn malformed(path: &Path, e: impl std::fmt::Display) -> McapError {
+    McapError::Malformed { path: path.to_owned(), reason: e.to_string() }
+}
+
+impl McapFile {
+    /// Reads `path` whole and its summary, if it has one.
+    ///
+    /// # Errors
+    /// [`DatasetError::Io`] when it cannot be read, [`McapError::Malformed`] for a damaged
+    /// summary or a file that is not MCAP.
+    pub fn read(path: &Path) -> Result<Self, DatasetError> {
+        let bytes = std::fs::read(path)
+            .map_err(|source| DatasetError::Io { path: path.to_owned(), source })?;
+        if !bytes.starts_with(mcap::MAGIC) {
+            return Err(malformed(path, "it does not start with the MCAP magic").into());
+        }
+        let summary = Summary::read(&bytes).map_err(|e| malformed(path, e))?;
+        Ok(Self { path: path.to_owned(), bytes, summary, indexed: false })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Visits every message whose channel `wanted` accepts, in file order within each topic, and
+    /// returns every topic of the file with its message count.
+    ///
+    /// # Errors
+    /// [`McapError::Malformed`] for a damaged file; the first error `visit` returns.
+    pub fn scan(
+        &mut self,
+        wanted: impl Fn(&Channel<'_>) -> bool,
+        mut visit: impl FnMut(Visit<'_>) -> Result<(), McapError>,
+    ) -> Result<Vec<TopicInfo>, McapError> {
+        let mut counts: BTreeMap<String, TopicInfo> = BTreeMap::new();
+        let mut count = |channel: &Channel<'_>| {
+            let info = counts.entry(channel.topic.clone()).or_insert_with(|| TopicInfo {
+                topic: channel.topic.clone(),
+                schema: channel.schema.as_ref().map_or(String::new(), |s| s.name.clone()),
+                message_encoding: channel.message_encoding.clone(),
+                messages: 0,
+            });
+            info.messages += 1;
+        };
+        if let Some(summary) = self.summary.as_ref().filter(|s| fully_indexed(&self.bytes, s)) {
+            // A chunk without message indexes holds no message here (the counts matched): a
+            // writer's schemas and channels before its first message.
+            let chunks = summary.chunk_indexes.iter().enumerate();
+            for (chunk, index) in chunks.filter(|(_, c)| !c.message_index_offsets.is_empty()) {
+                let entries = summary.read_message_indexes(&self.bytes, index);
+                let mut entries: HashMap<u16, Vec<MessageIndexEntry>> = entries
+                    .map_err(|e| malformed(&self.path, e))?
+                    .into_iter()
+                    .map(|(c, mut e)| {
+                        e.sort_by_key(|e| std::cmp::Reverse(e.offset));
+                        (c.id, e)
+                    })
+                    .collect();
+                let stream = summary.stream_chunk(&self.bytes, index);
+                for message in stream.map_err(|e| malformed(&self.path, e))? {
+                    let message = message.map_err(|e| malformed(&self.path, e))?;
+                    count(&message.channel);
+                    let entry = entries.get_mut(&message.channel.id).and_then(Vec::pop);
+                    let Some(entry) = entry else {
+                        return Err(malformed(&self.path, "a chunk's message index is short"));
+                    };
+                    if wanted(&message.channel) {
+                        let at = MessageAt::Chunk { chunk, entry };
+                        visit(Visit { channel: &message.channel, data: &message.data, at })?;
+                    }
+                }
+            }
+            self.indexed = true;
+        } else {
+            let stream = MessageStream::new(&self.bytes).map_err(|e| malformed(&self.path, e))?;
+            for message in stream {
+                let Message { channel, data, .. } =
+                    message.map_err(|e| malformed(&self.path, e))?;
+                count(&channel);
+                if wanted(&channel) {
+                    let data: Arc<[u8]> = Arc::from(data.into_owned());
+                    let at = MessageAt::Memory(Arc::clone(&data));
+                    visit(Visit { channel: &channel, data: &data, at })?;
+                }
+            }
+        }
+        Ok(counts.into_values().collect())
+    }
+
+    /// The bytes of the message at `at`.
+    ///
+    /// # Errors
+    /// [`McapError::Malformed`] when the chunk cannot be read again.
+    pub fn message<'a>(&'a self, at: &'a MessageAt) -> Result<Cow<'a, [u8]>, McapError> {
+        match at {
+            MessageAt::Memory(data) => Ok(Cow::Borrowed(data)),
+            MessageAt::Chunk { chunk, entry } => {
+                let summary = self.summary.as_ref().filter(|_| self.indexed);
+                let index = summary.and_then(|s| s.chunk_indexes.get(*chunk).map(|i| (s, i)));
+                let Some((summary, index)) = index else {
+                    return Err(malformed(&self.path, "a message's chunk is not indexed"));
+                };
+                let message = summary.seek_message(&self.bytes, index, entry);
+                Ok(Cow::Owned(message.map_err(|e| malformed(&self.path, e))?.data.into_owned()))
+            }
+        }
+    }
+
+    /// The map of the metadata record named `name`, if the file has one (the first).
+    ///
+    /// # Errors
+    /// [`McapError::Malformed`] for a damaged record.
+    pub fn metadata(&self, name: &str) -> Result<Option<BTreeMap<String, String>>, McapError> {
+        if let Some(summary) = self.summary.as_ref().filter(|s| !s.metadata_indexes.is_empty()) {
+            let Some(index) = summary.metadata_indexes.iter().find(|i| i.name == name) else {
+                return Ok(None);
+            };
+            let end = index.offset.checked_add(index.length);
+            if end.is_none_or(|end| end > self.bytes.len() as u64) {
+                return Err(malformed(&self.path, "a metadata index points past the end"));
+            }
+            let record = mcap::read::metadata(&self.bytes, index);
+            return Ok(Some(record.map_err(|e| malformed(&self.path, e))?.metadata));
+        }
+        // No metadata index: look through the top-level records.
+        let reader =
+            mcap::read::LinearReader::new(&self.bytes).map_err(|e| malformed(&self.path, e))?;
+        for record in reader {
+            if let Record::Metadata(m) = record.map_err(|e| malformed(&self.path, e))?
+                && m.name == name
+            {
+                return Ok(Some(m.metadata));
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// Bytes of a record's opcode and length.
+const RECORD_HEADER_LEN: u64 = 9;
+/// Bytes of the shortest message index record (no entry).
+const MIN_MESSAGE_INDEX_LEN: u64 = RECORD_HEADER_LEN + 2 + 4;
+
+/// Whether every message of the file is in a chunk whose message indexes list it: the summary's
+/// statistics count as many messages as the chunks' message indexes hold.
+fn fully_indexed(bytes: &[u8], summary: &Summary) -> bool {
+    let Some(stats) = &summary.stats else { return false };
+    // The mcap crate slices the file at these offsets; a damaged index is not followed.
+    let len = bytes.len() as u64;
+    let within = |start: u64, length: u64| start.checked_add(length).is_some_and(|end| end <= len);
+    let sane = summary.chunk_indexes.iter().all(|c| {
+        c.chunk_length >= RECORD_HEADER_LEN
+            && within(c.chunk_start_offset, c.chunk_length)
+            && c.message_index_offsets.values().all(|&o| within(o, MIN_MESSAGE_INDEX_LEN))
+    });
+    if !sane {
+        return false;
+    }
+    let mut indexed = 0u64;
+    for index in summary.chunk_indexes.iter().filter(|c| !c.message_index_offsets.is_empty()) {
+        match summary.read_message_indexes(bytes, index) {
+            Ok(entries) => indexed += entries.values().map(|e| e.len() as u64).sum::<u64>(),
+            Err(_) => return false,
+        }
+    }
+    indexed == stats.message_count
+}
