@@ -88,20 +88,36 @@ impl SceneBox {
         [self.cos_yaw * x + self.sin_yaw * y, -self.sin_yaw * x + self.cos_yaw * y, z]
     }
 
-    /// Entry `(t, face)` of the ray, if it enters the box in front of its origin. `o`, `d` are
-    /// box-local, `inv` holds `1 / d` per axis.
-    fn intersect(&self, o: &[f64; 3], d: &[f64; 3], inv: &[f64; 3]) -> Option<(f64, u8)> {
+    /// Whether the box's axes are the world's (no yaw): then a ray's direction and reciprocals
+    /// are already box-local.
+    fn is_axis_aligned(&self) -> bool {
+        self.sin_yaw == 0.0 && self.cos_yaw == 1.0
+    }
+
+    /// The box's part of a [`CastOrigin`]: `origin` in box-local coordinates and its slab gaps.
+    fn local_origin(&self, origin: &Point3<f64>) -> LocalOrigin {
+        let o = self.to_local(&origin.coords, true);
+        LocalOrigin {
+            o,
+            gap_min: [0, 1, 2].map(|a| -self.half[a] - o[a]),
+            gap_max: [0, 1, 2].map(|a| self.half[a] - o[a]),
+        }
+    }
+
+    /// Entry `(t, face)` of the ray, if it enters the box in front of its origin. `local` is the
+    /// origin prepared for this box, `d` the box-local direction, `inv` holds `1 / d` per axis.
+    #[inline]
+    fn intersect(&self, local: &LocalOrigin, d: &[f64; 3], inv: &[f64; 3]) -> Option<(f64, u8)> {
         let (mut t_near, mut t_far, mut face) = (f64::NEG_INFINITY, f64::INFINITY, 0u8);
         for a in 0..3 {
-            let h = self.half[a];
             if d[a] == 0.0 {
-                if o[a].abs() >= h {
+                if local.o[a].abs() >= self.half[a] {
                     return None;
                 }
                 continue;
             }
-            let t1 = (-h - o[a]) * inv[a];
-            let t2 = (h - o[a]) * inv[a];
+            let t1 = local.gap_min[a] * inv[a];
+            let t2 = local.gap_max[a] * inv[a];
             // Entering through the minimum side when moving towards +axis.
             let (ta, tb, f) = if t1 < t2 { (t1, t2, 2 * a) } else { (t2, t1, 2 * a + 1) };
             if ta > t_near {
@@ -128,6 +144,35 @@ pub(crate) struct Sphere {
     centre: Point3<f64>,
     radius: f64,
     material: Material,
+}
+
+/// A box's share of a [`CastOrigin`]: the origin in box-local coordinates (metres) and, per
+/// axis, `-half - o` and `half - o`, the numerators of the slab test.
+#[derive(Debug, Clone, PartialEq)]
+struct LocalOrigin {
+    o: [f64; 3],
+    gap_min: [f64; 3],
+    gap_max: [f64; 3],
+}
+
+/// A ray origin prepared for casting many rays from it ([`Scene::prepare`], [`Scene::cast_from`]):
+/// the parts of the room and box tests that depend on the origin alone, computed once. Casting
+/// from it gives exactly the bits of [`Scene::cast`] (the same expressions, evaluated earlier).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CastOrigin {
+    origin: Point3<f64>,
+    /// Per axis, `ROOM_MIN - origin` and `ROOM_MAX - origin`, metres.
+    room_gap: [[f64; 2]; 3],
+    /// Per box of the scene, in order.
+    boxes: Vec<LocalOrigin>,
+}
+
+impl CastOrigin {
+    /// The origin, world frame, metres.
+    #[cfg(test)]
+    pub(crate) fn origin(&self) -> &Point3<f64> {
+        &self.origin
+    }
 }
 
 /// The room with its furniture and posters.
@@ -266,32 +311,54 @@ impl Scene {
     /// The nearest hit of the ray `origin + t * dir`, `t > 0`, testing only the objects whose bit
     /// is set in `mask` (bit `k` = object `k`, see [`Scene::object_count`]; the room is always
     /// tested). `dir` need not be unit length. Inside the closed room every ray hits something;
-    /// `None` only for a degenerate direction.
+    /// `None` only for a degenerate direction. Many rays from one origin: [`Scene::cast_from`].
     pub(crate) fn cast(&self, origin: &Point3<f64>, dir: &Vector3<f64>, mask: u32) -> Option<Hit> {
+        self.cast_from(&self.prepare(origin), dir, mask)
+    }
+
+    /// `origin` prepared for [`Scene::cast_from`] (a few dozen operations per box).
+    pub(crate) fn prepare(&self, origin: &Point3<f64>) -> CastOrigin {
+        CastOrigin {
+            origin: *origin,
+            room_gap: [0, 1, 2].map(|a| [ROOM_MIN[a] - origin[a], ROOM_MAX[a] - origin[a]]),
+            boxes: self.boxes.iter().map(|b| b.local_origin(origin)).collect(),
+        }
+    }
+
+    /// [`Scene::cast`] from a prepared origin (of this scene), with the same result.
+    #[inline]
+    pub(crate) fn cast_from(
+        &self,
+        from: &CastOrigin,
+        dir: &Vector3<f64>,
+        mask: u32,
+    ) -> Option<Hit> {
+        let origin = &from.origin;
         let inv_world = [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z];
-        let (mut best_t, room_face) = Self::room_exit(origin, dir, &inv_world)?;
-        let mut best_box: Option<(usize, u8, [f64; 3], [f64; 3])> = None;
-        for (i, b) in self.boxes.iter().enumerate() {
-            if mask & (1 << i) == 0 {
-                continue;
-            }
-            let o = b.to_local(&origin.coords, true);
+        let (mut best_t, room_face) = Self::room_exit(&from.room_gap, dir, &inv_world)?;
+        let mut best_box: Option<(usize, u8, [f64; 3])> = None;
+        // Only the set bits, in increasing order (so ties go to the same object as a full scan).
+        let n_boxes = self.boxes.len();
+        let mut box_bits = if n_boxes >= 32 { mask } else { mask & ((1 << n_boxes) - 1) };
+        while box_bits != 0 {
+            let i = box_bits.trailing_zeros() as usize;
+            box_bits &= box_bits - 1;
+            let (Some(b), Some(local)) = (self.boxes.get(i), from.boxes.get(i)) else { break };
             // The rotation is about z: the z reciprocal is shared, and unrotated boxes share all.
-            let (d, inv) = if b.sin_yaw == 0.0 && b.cos_yaw == 1.0 {
+            let (d, inv) = if b.is_axis_aligned() {
                 ([dir.x, dir.y, dir.z], inv_world)
             } else {
                 let d = b.to_local(dir, false);
                 (d, [1.0 / d[0], 1.0 / d[1], inv_world[2]])
             };
-            if let Some((t, face)) = b.intersect(&o, &d, &inv)
+            if let Some((t, face)) = b.intersect(local, &d, &inv)
                 && t < best_t
             {
                 best_t = t;
-                best_box = Some((i, face, o, d));
+                best_box = Some((i, face, d));
             }
         }
         let mut best_sphere = None;
-        let n_boxes = self.boxes.len();
         for (i, s) in self.spheres.iter().enumerate() {
             if mask & (1 << (n_boxes + i)) == 0 {
                 continue;
@@ -307,8 +374,10 @@ impl Scene {
         if let Some(i) = best_sphere {
             return Some(self.sphere_hit(i, origin, dir, best_t));
         }
-        if let Some((i, face, o, d)) = best_box {
-            return Some(self.box_hit(i, face, &o, &d, best_t));
+        if let Some((i, face, d)) = best_box
+            && let Some(local) = from.boxes.get(i)
+        {
+            return Some(self.box_hit(i, face, &local.o, &d, best_t));
         }
         Some(Self::room_hit(origin, dir, best_t, room_face))
     }
@@ -356,14 +425,16 @@ impl Scene {
         }
     }
 
-    /// Where the ray leaves the room: `(t, face)`.
-    fn room_exit(o: &Point3<f64>, d: &Vector3<f64>, inv: &[f64; 3]) -> Option<(f64, u8)> {
+    /// Where the ray leaves the room: `(t, face)`. `gap` holds, per axis, `ROOM_MIN - origin` and
+    /// `ROOM_MAX - origin`; `inv` holds `1 / d`.
+    #[inline]
+    fn room_exit(gap: &[[f64; 2]; 3], d: &Vector3<f64>, inv: &[f64; 3]) -> Option<(f64, u8)> {
         let (mut t, mut face) = (f64::INFINITY, 0u8);
         for a in 0..3 {
             let (ta, f) = if d[a] > 0.0 {
-                ((ROOM_MAX[a] - o[a]) * inv[a], 2 * a + 1)
+                (gap[a][1] * inv[a], 2 * a + 1)
             } else if d[a] < 0.0 {
-                ((ROOM_MIN[a] - o[a]) * inv[a], 2 * a)
+                (gap[a][0] * inv[a], 2 * a)
             } else {
                 continue;
             };

@@ -35,25 +35,39 @@ pub(crate) fn unit(h: u32) -> f64 {
     f64::from(h) * (1.0 / 4_294_967_296.0)
 }
 
-/// `floor(x)`, exact for `|x| < 2^53`, inlined (the baseline x86-64 `floor` is a library call and
-/// shows up in profiles). Texture coordinates are a few metres times at most a few hundred.
+/// `1.5 * 2^52`: for `|x| < 2^51`, `x + ROUNDING_BIAS` is `x` rounded to the nearest integer
+/// (the sum's unit in the last place is 1), held in the low bits of the sum's mantissa.
+const ROUNDING_BIAS: f64 = 6_755_399_441_055_744.0;
+
+/// `floor(x)` as a float and as a lattice index, exact for `|x| < 2^31` (texture coordinates are
+/// a few metres times at most a few hundred). Two additions and a compare: the baseline x86-64
+/// `floor` is a library call, and a saturating float-to-integer conversion costs several
+/// instructions more.
 #[inline]
-pub(crate) fn floor(x: f64) -> f64 {
-    let t = x as i64 as f64;
-    if t > x { t - 1.0 } else { t }
+pub(crate) fn floor_cell(x: f64) -> (f64, i32) {
+    let biased = x + ROUNDING_BIAS;
+    let nearest = biased - ROUNDING_BIAS;
+    // The low 32 bits of the mantissa are the nearest integer in two's complement.
+    let index = biased.to_bits() as u32 as i32;
+    if nearest > x { (nearest - 1.0, index.wrapping_sub(1)) } else { (nearest, index) }
 }
 
-/// `floor(x)` as a lattice index (saturating for absurdly large inputs, which never occur here).
+/// `floor(x)`, exact for `|x| < 2^31` (see [`floor_cell`]).
+#[inline]
+pub(crate) fn floor(x: f64) -> f64 {
+    floor_cell(x).0
+}
+
+/// `floor(x)` as a lattice index, for `|x| < 2^31` (see [`floor_cell`]).
 #[inline]
 pub(crate) fn cell(x: f64) -> i32 {
-    floor(x) as i32
+    floor_cell(x).1
 }
 
 /// Smooth value noise in `[0, 1]` with unit lattice spacing.
 #[inline]
 pub(crate) fn value_noise(x: f64, y: f64, salt: u32) -> f64 {
-    let (xf, yf) = (floor(x), floor(y));
-    let (i, j) = (xf as i32, yf as i32);
+    let ((xf, i), (yf, j)) = (floor_cell(x), floor_cell(y));
     let (fx, fy) = (x - xf, y - yf);
     let sx = fx * fx * (3.0 - 2.0 * fx);
     let sy = fy * fy * (3.0 - 2.0 * fy);
@@ -261,6 +275,28 @@ fn dots(u: f64, v: f64, salt: u32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The former `floor` (truncation, then one down) and saturating `as i32`, on the domain.
+    #[test]
+    fn floor_cell_matches_truncating_floor() {
+        let reference = |x: f64| {
+            let t = x as i64 as f64;
+            let f = if t > x { t - 1.0 } else { t };
+            (f, f as i32)
+        };
+        let mut rng = crate::synth::rng::SplitMix64::new(3);
+        let mut xs = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 1e9, -1e9, 2.1e9, -2.1e9];
+        for k in -2000..2000 {
+            let x = f64::from(k) * 0.25;
+            xs.extend([x, x.next_up(), x.next_down()]);
+        }
+        xs.extend((0..100_000).map(|_| rng.uniform(-3000.0, 3000.0)));
+        for x in xs {
+            let (f, i) = floor_cell(x);
+            let (rf, ri) = reference(x);
+            assert_eq!((f.to_bits(), i), (rf.to_bits(), ri), "{x:e}");
+        }
+    }
 
     #[test]
     fn shared_products_match_hash2() {
