@@ -184,6 +184,8 @@ pub(crate) struct Scene {
     posters: Vec<Poster>,
     /// Per face slot, the range of `posters` on that face.
     poster_ranges: Vec<core::ops::Range<usize>>,
+    /// Per face slot, the material and the texture salt of the face (see [`Scene::index_faces`]).
+    surfaces: Vec<(Material, u32)>,
     room_materials: [Material; 6],
     light_dir: Vector3<f64>,
 }
@@ -238,6 +240,7 @@ impl Scene {
             spheres,
             posters: Vec::new(),
             poster_ranges: Vec::new(),
+            surfaces: Vec::new(),
             room_materials: [
                 Plaster,
                 WallTiles,
@@ -249,6 +252,7 @@ impl Scene {
             light_dir: Vector3::new(0.45, -0.6, 0.66).normalize(),
         };
         scene.set_posters(demo_posters());
+        scene.index_faces();
         scene
     }
 
@@ -259,6 +263,22 @@ impl Scene {
             FaceId::Box { index, face } => 6 + 6 * usize::from(index) + usize::from(face),
             FaceId::Sphere(i) => 6 + 6 * self.boxes.len() + usize::from(i),
         }
+    }
+
+    /// Every face, in slot order (see [`Scene::slot`]).
+    fn faces(&self) -> impl Iterator<Item = FaceId> {
+        let boxes = (0..self.boxes.len() as u8)
+            .flat_map(|index| (0..6).map(move |face| FaceId::Box { index, face }));
+        (0..6)
+            .map(FaceId::Room)
+            .chain(boxes)
+            .chain((0..self.spheres.len() as u8).map(FaceId::Sphere))
+    }
+
+    /// Tabulates each face's material and texture salt by slot, so that shading a hit looks them
+    /// up instead of matching and hashing.
+    fn index_faces(&mut self) {
+        self.surfaces = self.faces().map(|f| (self.material(f), f.salt())).collect();
     }
 
     /// Stores the posters grouped by face so that shading finds a face's posters directly.
@@ -325,8 +345,9 @@ impl Scene {
         }
     }
 
-    /// [`Scene::cast`] from a prepared origin (of this scene), with the same result.
-    #[inline]
+    /// [`Scene::cast`] from a prepared origin (of this scene), with the same result. Inlined into
+    /// each caller, so that a caller that needs only `t` drops the face coordinates.
+    #[inline(always)]
     pub(crate) fn cast_from(
         &self,
         from: &CastOrigin,
@@ -385,15 +406,22 @@ impl Scene {
     /// Radiance of a hit in `[0, 1]`: albedo times ambient plus Lambertian light. It depends on
     /// the surface point only, never on the viewpoint.
     pub(crate) fn radiance(&self, hit: &Hit) -> f64 {
-        let on_face =
-            self.poster_ranges.get(self.slot(hit.face)).and_then(|r| self.posters.get(r.clone()));
-        let albedo = on_face
-            .unwrap_or_default()
-            .iter()
-            .find_map(|p| p.albedo(hit.u, hit.v))
-            .unwrap_or_else(|| self.material(hit.face).albedo(hit.u, hit.v, hit.face.salt()));
+        let slot = self.slot(hit.face);
+        let on_face = self.poster_ranges.get(slot).and_then(|r| self.posters.get(r.clone()));
+        let poster = on_face.unwrap_or_default().iter().find_map(|p| p.albedo(hit.u, hit.v));
+        let albedo = poster.unwrap_or_else(|| self.surface_albedo(slot, hit));
         let lambert = hit.normal.dot(&self.light_dir).max(0.0);
         albedo * (AMBIENT + DIFFUSE * lambert)
+    }
+
+    /// Albedo of the bare surface (no poster) at a hit on the face of slot `slot`.
+    fn surface_albedo(&self, slot: usize, hit: &Hit) -> f64 {
+        let (material, salt) = self
+            .surfaces
+            .get(slot)
+            .copied()
+            .unwrap_or_else(|| (self.material(hit.face), hit.face.salt()));
+        material.albedo(hit.u, hit.v, salt)
     }
 
     /// Distance from a world point to the nearest box, sphere, wall, floor or ceiling (metres).
@@ -559,6 +587,17 @@ fn demo_posters() -> Vec<Poster> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn faces_are_in_slot_order() {
+        let s = Scene::demo();
+        let faces: Vec<FaceId> = s.faces().collect();
+        assert_eq!(faces.len(), s.surfaces.len());
+        for (k, f) in faces.into_iter().enumerate() {
+            assert_eq!(s.slot(f), k);
+            assert_eq!(s.surfaces[k], (s.material(f), f.salt()));
+        }
+    }
 
     #[test]
     fn ray_to_north_wall() {
