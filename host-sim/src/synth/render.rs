@@ -13,6 +13,7 @@ use std::sync::Mutex;
 
 use nalgebra::{Isometry3, Vector3};
 
+use super::noise::NoiseCache;
 use super::rng::SplitMix64;
 use super::scene::{CastOrigin, Scene};
 use super::{FRAME_RATE_HZ, SynthError, SynthFrame, SynthIntrinsics, SyntheticSequence};
@@ -221,13 +222,13 @@ fn render_parallel(
     // Renders chunks until the queue is empty; `false` if the queue's lock was poisoned (a
     // worker panicked while taking a chunk).
     let work = || {
-        let mut masks = RowMasks::new(job);
+        let mut scratch = Scratch::new(job);
         loop {
             let Ok(mut items) = queue.lock() else { return false };
             let next = items.next();
             drop(items);
             let Some((c, (g, d))) = next else { return true };
-            render_rows(job, c * ROWS_PER_CHUNK, g, d, &mut masks);
+            render_rows(job, c * ROWS_PER_CHUNK, g, d, &mut scratch);
         }
     };
     std::thread::scope(|s| {
@@ -248,34 +249,46 @@ fn render_parallel(
     })
 }
 
-/// A render thread's cast masks of the row being rendered: one per pixel for each exposure pose
-/// (pose-major) and for the centre pose.
-struct RowMasks {
-    exposure: Vec<u32>,
-    centre: Vec<u32>,
+/// A render thread's scratch: the cast masks of the row being rendered, one per pixel for each
+/// exposure pose (pose-major) and for the centre pose, and its value-noise cache.
+struct Scratch {
+    exposure_masks: Vec<u32>,
+    centre_masks: Vec<u32>,
+    noise: NoiseCache,
 }
 
-impl RowMasks {
+impl Scratch {
     fn new(job: &Job<'_>) -> Self {
         let w = job.intr.width;
-        Self { exposure: vec![0; w * job.exposure.len()], centre: vec![0; w] }
+        Self {
+            exposure_masks: vec![0; w * job.exposure.len()],
+            centre_masks: vec![0; w],
+            noise: NoiseCache::new(),
+        }
     }
 
-    fn fill(&mut self, job: &Job<'_>, y: usize) {
+    /// Fills the masks of row `y`.
+    fn fill_masks(&mut self, job: &Job<'_>, y: usize) {
         let w = job.intr.width;
-        for (pose, masks) in job.exposure.iter().zip(self.exposure.chunks_mut(w)) {
+        for (pose, masks) in job.exposure.iter().zip(self.exposure_masks.chunks_mut(w)) {
             pose.row_masks(y as f64, masks);
         }
-        job.centre.row_masks(y as f64, &mut self.centre);
+        job.centre.row_masks(y as f64, &mut self.centre_masks);
     }
 }
 
 /// Renders the rows starting at `y0` into a chunk of the gray and depth buffers.
-fn render_rows(job: &Job<'_>, y0: usize, gray: &mut [u8], depth: &mut [u16], masks: &mut RowMasks) {
+fn render_rows(
+    job: &Job<'_>,
+    y0: usize,
+    gray: &mut [u8],
+    depth: &mut [u16],
+    scratch: &mut Scratch,
+) {
     let w = job.intr.width;
     for (r, (g_row, d_row)) in gray.chunks_mut(w).zip(depth.chunks_mut(w)).enumerate() {
         let y = y0 + r;
-        masks.fill(job, y);
+        scratch.fill_masks(job, y);
         let yn = &job.coords.rows[y];
         for (x, (g, d)) in g_row.iter_mut().zip(d_row.iter_mut()).enumerate() {
             // Always draw both so that enabling one noise does not change the other.
@@ -286,11 +299,12 @@ fn render_rows(job: &Job<'_>, y0: usize, gray: &mut [u8], depth: &mut [u16], mas
                 (0.0, 0.0)
             };
             let xn = &job.coords.cols[x];
-            let radiance = pixel_radiance(job, xn, yn, &masks.exposure[x..]);
+            let radiance =
+                pixel_radiance(job, xn, yn, &scratch.exposure_masks[x..], &mut scratch.noise);
             let level = radiance * GRAY_GAIN + job.gray_noise_sigma * n_gray;
             // Round half up (the level is non-negative after the clamp).
             *g = (level.clamp(0.0, 255.0) + 0.5) as u8;
-            *d = pixel_depth(job, xn[CENTRE], yn[CENTRE], masks.centre[x], n_depth);
+            *d = pixel_depth(job, xn[CENTRE], yn[CENTRE], scratch.centre_masks[x], n_depth);
         }
     }
 }
@@ -298,14 +312,20 @@ fn render_rows(job: &Job<'_>, y0: usize, gray: &mut [u8], depth: &mut [u16], mas
 /// Mean radiance over the supersamples (and the exposure's poses) of a pixel: `xn`, `yn` are its
 /// column's and row's normalized coordinates, `masks[s * width]` its cast mask under pose `s`.
 #[inline]
-fn pixel_radiance(job: &Job<'_>, xn: &[f64; 5], yn: &[f64; 5], masks: &[u32]) -> f64 {
+fn pixel_radiance(
+    job: &Job<'_>,
+    xn: &[f64; 5],
+    yn: &[f64; 5],
+    masks: &[u32],
+    noise: &mut NoiseCache,
+) -> f64 {
     let mut sum = 0.0;
     let masks = masks.iter().step_by(job.intr.width);
     for (pose, &mask) in job.exposure.iter().zip(masks) {
         for s in 0..SUBSAMPLES.len() {
             let dir = pose.dir(xn[s], yn[s]);
             if let Some(hit) = job.scene.cast_from(&pose.origin, &dir, mask) {
-                sum += job.scene.radiance(&hit);
+                sum += job.scene.radiance(&hit, noise);
             }
         }
     }

@@ -13,6 +13,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::face::FaceId;
+use super::noise::NoiseCache;
 use super::poster::{Poster, PosterKind};
 use super::rng::SplitMix64;
 use super::texture::Material;
@@ -404,24 +405,24 @@ impl Scene {
     }
 
     /// Radiance of a hit in `[0, 1]`: albedo times ambient plus Lambertian light. It depends on
-    /// the surface point only, never on the viewpoint.
-    pub(crate) fn radiance(&self, hit: &Hit) -> f64 {
+    /// the surface point only, never on the viewpoint (nor on `noise`, which only saves work).
+    pub(crate) fn radiance(&self, hit: &Hit, noise: &mut NoiseCache) -> f64 {
         let slot = self.slot(hit.face);
         let on_face = self.poster_ranges.get(slot).and_then(|r| self.posters.get(r.clone()));
-        let poster = on_face.unwrap_or_default().iter().find_map(|p| p.albedo(hit.u, hit.v));
-        let albedo = poster.unwrap_or_else(|| self.surface_albedo(slot, hit));
+        let poster = on_face.unwrap_or_default().iter().find_map(|p| p.albedo(hit.u, hit.v, noise));
+        let albedo = poster.unwrap_or_else(|| self.surface_albedo(slot, hit, noise));
         let lambert = hit.normal.dot(&self.light_dir).max(0.0);
         albedo * (AMBIENT + DIFFUSE * lambert)
     }
 
     /// Albedo of the bare surface (no poster) at a hit on the face of slot `slot`.
-    fn surface_albedo(&self, slot: usize, hit: &Hit) -> f64 {
+    fn surface_albedo(&self, slot: usize, hit: &Hit, noise: &mut NoiseCache) -> f64 {
         let (material, salt) = self
             .surfaces
             .get(slot)
             .copied()
             .unwrap_or_else(|| (self.material(hit.face), hit.face.salt()));
-        material.albedo(hit.u, hit.v, salt)
+        material.albedo(hit.u, hit.v, salt, noise)
     }
 
     /// Distance from a world point to the nearest box, sphere, wall, floor or ceiling (metres).
@@ -648,11 +649,12 @@ mod tests {
     fn radiance_is_bounded() {
         let s = Scene::demo();
         let o = Point3::new(0.0, -2.0, 1.4);
+        let mut noise = NoiseCache::new();
         for k in 0..500 {
             let a = f64::from(k) * 0.0126;
             let d = Vector3::new(libm::cos(a), libm::sin(a), 0.3 * libm::sin(7.0 * a));
             let h = s.cast(&o, &d, u32::MAX).unwrap();
-            let r = s.radiance(&h);
+            let r = s.radiance(&h, &mut noise);
             assert!((0.0..=1.0).contains(&r));
         }
     }
