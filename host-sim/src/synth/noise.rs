@@ -75,34 +75,40 @@ fn cell_corners(hi: u32, hj: u32, hs: u32) -> [f64; 4] {
 /// Entries of a [`NoiseCache`] (a power of two).
 const NOISE_CACHE_CELLS: usize = 128;
 
+/// A lattice cell of one noise layer: `(i, j)` and the salt.
+type CellKey = (i32, i32, u32);
+
+/// One entry of a [`NoiseCache`]: a cell and the values of its four corners.
+#[derive(Debug, Clone, Copy)]
+struct CachedCell {
+    key: CellKey,
+    corners: [f64; 4],
+}
+
 /// The corner values of recently used value-noise lattice cells, so that samples falling in one
 /// cell (the supersamples of a pixel, its neighbours) hash its corners once. Direct-mapped on
 /// `(i, j, salt)`; every entry holds the true corners of its key, so [`value_noise`] returns the
 /// same bits with any cache contents. The caller owns it, one per thread (about 6 KB).
 #[derive(Debug, Clone)]
 pub(crate) struct NoiseCache {
-    /// `((i, j, salt), corners)`.
-    cells: Vec<((i32, i32, u32), [f64; 4])>,
+    cells: Vec<CachedCell>,
 }
 
 impl NoiseCache {
     /// An empty cache (every entry holds cell `(0, 0)` of salt 0, computed).
     pub(crate) fn new() -> Self {
-        Self { cells: vec![((0, 0, 0), cell_corners(0, 0, 0)); NOISE_CACHE_CELLS] }
+        let origin = CachedCell { key: (0, 0, 0), corners: cell_corners(0, 0, 0) };
+        Self { cells: vec![origin; NOISE_CACHE_CELLS] }
     }
 
-    /// The corners of cell `(i, j)` of salt `salt` (see [`cell_corners`] for `hi`, `hj`, `hs`).
+    /// The corners of cell `key`; `(hi, hj, hs)` are its lattice products (see [`cell_corners`]).
     #[inline]
-    fn corners(
-        &mut self,
-        (i, j, salt): (i32, i32, u32),
-        (hi, hj, hs): (u32, u32, u32),
-    ) -> [f64; 4] {
+    fn corners(&mut self, key: CellKey, (hi, hj, hs): (u32, u32, u32)) -> [f64; 4] {
         // The top bits of the first corner's hash input mix all three keys.
         let index = ((hi ^ hj ^ hs) >> (32 - NOISE_CACHE_CELLS.trailing_zeros())) as usize;
         match self.cells.get_mut(index) {
-            Some(entry) if entry.0 == (i, j, salt) => entry.1,
-            entry => Self::miss(entry, (i, j, salt), (hi, hj, hs)),
+            Some(entry) if entry.key == key => entry.corners,
+            entry => Self::miss(entry, key, (hi, hj, hs)),
         }
     }
 
@@ -110,13 +116,13 @@ impl NoiseCache {
     #[cold]
     #[inline(never)]
     fn miss(
-        entry: Option<&mut ((i32, i32, u32), [f64; 4])>,
-        key: (i32, i32, u32),
+        entry: Option<&mut CachedCell>,
+        key: CellKey,
         (hi, hj, hs): (u32, u32, u32),
     ) -> [f64; 4] {
         let corners = cell_corners(hi, hj, hs);
         if let Some(entry) = entry {
-            *entry = (key, corners);
+            *entry = CachedCell { key, corners };
         }
         corners
     }
@@ -128,7 +134,8 @@ impl Default for NoiseCache {
     }
 }
 
-/// Smooth value noise in `[0, 1]` with unit lattice spacing; `noise` only saves work.
+/// Smooth value noise in `[0, 1]` with unit lattice spacing; `noise` only saves work. Kept out of
+/// line: inlined into the render loop it is slower (docs/decisions.md, "The demo's renderer").
 #[inline(never)]
 pub(crate) fn value_noise(x: f64, y: f64, salt: u32, noise: &mut NoiseCache) -> f64 {
     let ((xf, i), (yf, j)) = (floor_cell(x), floor_cell(y));

@@ -412,10 +412,10 @@ mod tests {
             let mut culled = 0;
             for y in 0..intr.height {
                 frame.row_masks(y as f64, &mut row_masks);
-                for x in 0..intr.width {
+                for (x, &row_mask) in row_masks.iter().enumerate() {
                     let (xf, yf) = (x as f64, y as f64);
                     let mask = frame.mask(xf, yf);
-                    assert_eq!(row_masks[x], mask, "t {t} pixel ({x}, {y})");
+                    assert_eq!(row_mask, mask, "t {t} pixel ({x}, {y})");
                     culled += (mask != (1 << seq.scene.object_count()) - 1) as usize;
                     for (s, [ox, oy]) in RAY_OFFSETS.into_iter().enumerate() {
                         let (xn, yn) =
