@@ -231,6 +231,59 @@ fn landscape(s: f64, t: f64, salt: u32, noise: &mut NoiseCache) -> f64 {
     0.62 + 0.25 * (t - far) + 0.16 * (fbm(s * 4.0, t * 9.0, 3, salt ^ 7, noise) - 0.5)
 }
 
+/// The posters of the demo room (fixed layout; the shapes come from a fixed seed).
+pub(crate) fn demo_posters() -> Vec<Poster> {
+    let mut rng = SplitMix64::new(0x005E_ED0F_F00D);
+    let text = |face, origin, size, glyph_h, salt| Poster {
+        face,
+        origin,
+        size,
+        kind: PosterKind::Text { glyph_h, salt },
+    };
+    let north = FaceId::Room(3);
+    let west = FaceId::Room(0);
+    let east = FaceId::Room(1);
+    let south = FaceId::Room(2);
+    vec![
+        Poster::shapes(north, [-2.5, 1.0], [1.1, 0.9], 28, &mut rng),
+        text(north, [-1.1, 1.15], [0.9, 0.85], 0.035, 1),
+        Poster {
+            face: north,
+            origin: [0.2, 1.0],
+            size: [1.3, 0.9],
+            kind: PosterKind::Landscape { salt: 2 },
+        },
+        Poster { face: north, origin: [1.9, 1.2], size: [0.6, 0.6], kind: PosterKind::Logo },
+        Poster {
+            face: west,
+            origin: [-1.6, 0.8],
+            size: [1.0, 0.8],
+            kind: PosterKind::Checker { square_m: 0.1 },
+        },
+        Poster::shapes(west, [-0.2, 0.9], [1.2, 1.1], 35, &mut rng),
+        text(west, [1.2, 1.3], [0.7, 0.5], 0.06, 3),
+        text(east, [-1.5, 1.2], [1.0, 0.7], 0.025, 4),
+        Poster {
+            face: east,
+            origin: [0.2, 0.9],
+            size: [1.2, 0.9],
+            kind: PosterKind::Landscape { salt: 5 },
+        },
+        Poster::shapes(east, [-3.0, 1.0], [0.9, 0.8], 22, &mut rng),
+        Poster::shapes(south, [-0.6, 1.0], [1.2, 0.9], 30, &mut rng),
+        // The cabinet (box 2): a logo on its east face, text on its south face.
+        Poster {
+            face: FaceId::Box { index: 2, face: 1 },
+            origin: [-0.35, 1.1],
+            size: [0.7, 0.7],
+            kind: PosterKind::Logo,
+        },
+        text(FaceId::Box { index: 2, face: 2 }, [-0.3, 0.9], [0.6, 0.8], 0.03, 6),
+        // The pillar (box 5): shapes on its south face.
+        Poster::shapes(FaceId::Box { index: 5, face: 2 }, [-0.3, 0.5], [0.6, 0.8], 16, &mut rng),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
