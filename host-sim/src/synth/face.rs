@@ -1,7 +1,7 @@
 //! Which face of which object a ray hit: the key that the ray caster (`scene`) and the posters
 //! pasted on faces (`poster`) share, so neither needs the other's module for it.
 
-use super::texture::hash2;
+use super::noise::hash2;
 
 /// Which face of which object a ray hit. Face index `k`: axis `k / 2` (x, y, z), the minimum side
 /// for even `k`, the maximum for odd `k` (box-local axes for boxes).

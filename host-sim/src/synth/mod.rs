@@ -38,6 +38,7 @@
 //! machines and thread counts.
 
 mod face;
+mod noise;
 mod path;
 mod poster;
 mod render;

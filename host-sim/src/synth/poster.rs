@@ -6,8 +6,8 @@
 //! `x` to the right, `y` up.
 
 use super::face::FaceId;
+use super::noise::{NoiseCache, fbm, floor, hash2};
 use super::rng::SplitMix64;
-use super::texture::{fbm, floor, hash2};
 
 /// Albedo of poster paper.
 const PAPER: f64 = 0.92;
@@ -120,8 +120,9 @@ impl Poster {
         Self { face, origin, size, kind: PosterKind::Shapes(shapes) }
     }
 
-    /// Albedo at face coordinates `(u, v)`, or `None` outside the poster.
-    pub(crate) fn albedo(&self, u: f64, v: f64) -> Option<f64> {
+    /// Albedo at face coordinates `(u, v)`, or `None` outside the poster (`noise` only saves
+    /// work).
+    pub(crate) fn albedo(&self, u: f64, v: f64, noise: &mut NoiseCache) -> Option<f64> {
         let (x, y) = (u - self.origin[0], v - self.origin[1]);
         let [w, h] = self.size;
         if !(x >= 0.0 && x < w && y >= 0.0 && y < h) {
@@ -137,7 +138,7 @@ impl Poster {
             PosterKind::Text { glyph_h, salt } => text(x, h - y, w, *glyph_h, *salt),
             PosterKind::Checker { square_m } => checkerboard(x, y, w, h, *square_m),
             PosterKind::Logo => logo(x - 0.5 * w, y - 0.5 * h, 0.45 * w.min(h)),
-            PosterKind::Landscape { salt } => landscape(x / w, y / h, *salt),
+            PosterKind::Landscape { salt } => landscape(x / w, y / h, *salt, noise),
         })
     }
 }
@@ -213,21 +214,74 @@ fn logo(x: f64, y: f64, r: f64) -> f64 {
 }
 
 /// A landscape at normalized poster coordinates `(s, t)` in `[0, 1)^2`.
-fn landscape(s: f64, t: f64, salt: u32) -> f64 {
-    let far = 0.45 + 0.3 * fbm(s * 3.0, 0.5, 3, salt);
-    let near = 0.2 + 0.25 * fbm(s * 5.0, 7.5, 3, salt ^ 0x99);
+fn landscape(s: f64, t: f64, salt: u32, noise: &mut NoiseCache) -> f64 {
+    let far = 0.45 + 0.3 * fbm(s * 3.0, 0.5, 3, salt, noise);
+    let near = 0.2 + 0.25 * fbm(s * 5.0, 7.5, 3, salt ^ 0x99, noise);
     if t < near {
-        return 0.18 + 0.12 * fbm(s * 20.0, t * 20.0, 2, salt ^ 3);
+        return 0.18 + 0.12 * fbm(s * 20.0, t * 20.0, 2, salt ^ 3, noise);
     }
     if t < far {
-        return 0.4 + 0.12 * fbm(s * 12.0, t * 12.0, 2, salt ^ 5);
+        return 0.4 + 0.12 * fbm(s * 12.0, t * 12.0, 2, salt ^ 5, noise);
     }
     let (ds, dt) = (s - 0.72, t - 0.8);
     if ds * ds + dt * dt < 0.008 {
         return 0.99;
     }
     // Sky brightening upwards, with soft clouds.
-    0.62 + 0.25 * (t - far) + 0.16 * (fbm(s * 4.0, t * 9.0, 3, salt ^ 7) - 0.5)
+    0.62 + 0.25 * (t - far) + 0.16 * (fbm(s * 4.0, t * 9.0, 3, salt ^ 7, noise) - 0.5)
+}
+
+/// The posters of the demo room (fixed layout; the shapes come from a fixed seed).
+pub(crate) fn demo_posters() -> Vec<Poster> {
+    let mut rng = SplitMix64::new(0x005E_ED0F_F00D);
+    let text = |face, origin, size, glyph_h, salt| Poster {
+        face,
+        origin,
+        size,
+        kind: PosterKind::Text { glyph_h, salt },
+    };
+    let north = FaceId::Room(3);
+    let west = FaceId::Room(0);
+    let east = FaceId::Room(1);
+    let south = FaceId::Room(2);
+    vec![
+        Poster::shapes(north, [-2.5, 1.0], [1.1, 0.9], 28, &mut rng),
+        text(north, [-1.1, 1.15], [0.9, 0.85], 0.035, 1),
+        Poster {
+            face: north,
+            origin: [0.2, 1.0],
+            size: [1.3, 0.9],
+            kind: PosterKind::Landscape { salt: 2 },
+        },
+        Poster { face: north, origin: [1.9, 1.2], size: [0.6, 0.6], kind: PosterKind::Logo },
+        Poster {
+            face: west,
+            origin: [-1.6, 0.8],
+            size: [1.0, 0.8],
+            kind: PosterKind::Checker { square_m: 0.1 },
+        },
+        Poster::shapes(west, [-0.2, 0.9], [1.2, 1.1], 35, &mut rng),
+        text(west, [1.2, 1.3], [0.7, 0.5], 0.06, 3),
+        text(east, [-1.5, 1.2], [1.0, 0.7], 0.025, 4),
+        Poster {
+            face: east,
+            origin: [0.2, 0.9],
+            size: [1.2, 0.9],
+            kind: PosterKind::Landscape { salt: 5 },
+        },
+        Poster::shapes(east, [-3.0, 1.0], [0.9, 0.8], 22, &mut rng),
+        Poster::shapes(south, [-0.6, 1.0], [1.2, 0.9], 30, &mut rng),
+        // The cabinet (box 2): a logo on its east face, text on its south face.
+        Poster {
+            face: FaceId::Box { index: 2, face: 1 },
+            origin: [-0.35, 1.1],
+            size: [0.7, 0.7],
+            kind: PosterKind::Logo,
+        },
+        text(FaceId::Box { index: 2, face: 2 }, [-0.3, 0.9], [0.6, 0.8], 0.03, 6),
+        // The pillar (box 5): shapes on its south face.
+        Poster::shapes(FaceId::Box { index: 5, face: 2 }, [-0.3, 0.5], [0.6, 0.8], 16, &mut rng),
+    ]
 }
 
 #[cfg(test)]
@@ -242,11 +296,12 @@ mod tests {
             size: [0.5, 0.4],
             kind: PosterKind::Logo,
         };
-        assert_eq!(p.albedo(0.99, 2.1), None);
-        assert_eq!(p.albedo(1.2, 2.41), None);
-        assert_eq!(p.albedo(1.005, 2.2), Some(0.15));
+        let mut noise = NoiseCache::new();
+        assert_eq!(p.albedo(0.99, 2.1, &mut noise), None);
+        assert_eq!(p.albedo(1.2, 2.41, &mut noise), None);
+        assert_eq!(p.albedo(1.005, 2.2, &mut noise), Some(0.15));
         // Centre of the logo is the ink disc.
-        assert_eq!(p.albedo(1.25, 2.2), Some(INK));
+        assert_eq!(p.albedo(1.25, 2.2, &mut noise), Some(INK));
     }
 
     #[test]

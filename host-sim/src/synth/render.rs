@@ -1,29 +1,45 @@
 //! Rendering one frame: supersampled gray, pixel-centre depth, sensor effects, row-parallel.
 //!
 //! Every pixel is a pure function of (options, frame index, pixel position): the noise of a
-//! pixel comes from a generator keyed by the seed, the frame and the pixel index. Bands of rows are
-//! rendered on scoped threads, so the output is the same for any thread count. Hole blobs are drawn
-//! afterwards on one thread from the frame's own generator.
+//! pixel comes from a generator keyed by the seed, the frame and the pixel index. Chunks of rows
+//! are handed out to scoped threads from a shared queue, so the output is the same for any thread
+//! count. Hole blobs are drawn afterwards on one thread from the frame's own generator.
+//!
+//! Whatever depends only on the pose, a row or a column (the prepared ray origin, the culling
+//! masks of a row, the normalized coordinates of a column) is computed once and reused; it is the
+//! same expression evaluated earlier, so the bits are those of a pixel-by-pixel evaluation.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use std::sync::Mutex;
 
+use nalgebra::{Isometry3, Vector3};
+
+use super::noise::NoiseCache;
 use super::rng::SplitMix64;
-use super::scene::Scene;
+use super::scene::{CastOrigin, Scene};
 use super::{FRAME_RATE_HZ, SynthError, SynthFrame, SynthIntrinsics, SyntheticSequence};
 
 /// Rotated-grid 2x2 supersampling offsets, pixels: no two samples share a row or a column, which
 /// anti-aliases near-horizontal and near-vertical edges better than an ordered grid.
 const SUBSAMPLES: [[f64; 2]; 4] =
     [[0.125, -0.375], [0.375, 0.125], [-0.125, 0.375], [-0.375, -0.125]];
+/// Offsets of the rays of a pixel: the supersamples, then the centre (the depth ray).
+const RAY_OFFSETS: [[f64; 2]; 5] =
+    [SUBSAMPLES[0], SUBSAMPLES[1], SUBSAMPLES[2], SUBSAMPLES[3], [0.0, 0.0]];
+/// Index of the centre ray in [`RAY_OFFSETS`].
+const CENTRE: usize = 4;
 /// Gray level of radiance 1.
 const GRAY_GAIN: f64 = 255.0 * 1.15;
 /// Stream keys of the frame-level generator streams.
 const STREAM_HOLES: u64 = 0x401E;
+/// Rows per work item of the render threads: small enough that the threads finish together
+/// (rows differ in cost), large enough that taking an item costs nothing.
+const ROWS_PER_CHUNK: usize = 4;
 
 /// A camera pose prepared for generating rays.
 #[derive(Debug, Clone)]
 struct RayFrame {
-    origin: Point3<f64>,
+    /// The camera centre prepared for casting.
+    origin: CastOrigin,
     /// Camera axes in the world frame (columns of `R_wc`).
     axes: [Vector3<f64>; 3],
     /// Per scene object, a pixel rectangle `[x0, y0, x1, y1]` outside which no ray of this pose
@@ -36,7 +52,6 @@ impl RayFrame {
     fn new(t_wc: &Isometry3<f64>, scene: &Scene, intr: &SynthIntrinsics) -> Self {
         let r = t_wc.rotation.to_rotation_matrix();
         let m = r.matrix();
-        let origin = Point3::from(t_wc.translation.vector);
         let t_cw = t_wc.inverse();
         let everywhere = [f64::NEG_INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::INFINITY];
         let rects = (0..scene.object_count())
@@ -63,7 +78,7 @@ impl RayFrame {
             })
             .collect();
         Self {
-            origin,
+            origin: scene.prepare(&t_wc.translation.vector.into()),
             axes: [m.column(0).into_owned(), m.column(1).into_owned(), m.column(2).into_owned()],
             rects,
         }
@@ -77,7 +92,7 @@ impl RayFrame {
     }
 
     /// The cast mask of pixel `(x, y)`: the objects whose rectangle holds it.
-    #[inline]
+    #[cfg(test)]
     fn mask(&self, x: f64, y: f64) -> u32 {
         self.rects
             .iter()
@@ -85,9 +100,47 @@ impl RayFrame {
             .filter(|(_, r)| x >= r[0] && y >= r[1] && x <= r[2] && y <= r[3])
             .fold(0, |m, (k, _)| m | (1 << k))
     }
+
+    /// The cast masks of row `y`, pixel by pixel (`masks[x]` is the mask of pixel `(x, y)`): the
+    /// rectangles that hold the row, tested on `x` only. Cost: width times those rectangles.
+    fn row_masks(&self, y: f64, masks: &mut [u32]) {
+        masks.fill(0);
+        for (k, r) in self.rects.iter().enumerate() {
+            if !(y >= r[1] && y <= r[3]) {
+                continue;
+            }
+            for (x, m) in masks.iter_mut().enumerate() {
+                let x = x as f64;
+                if x >= r[0] && x <= r[2] {
+                    *m |= 1 << k;
+                }
+            }
+        }
+    }
 }
 
-/// Everything a band of rows needs.
+/// Normalized image coordinates of every column and row at each offset of [`RAY_OFFSETS`]:
+/// `cols[x][s] = (x + ox_s - cx) / fx`, `rows[y][s] = (y + oy_s - cy) / fy` (the divisions of a
+/// pixel's rays, done once per frame).
+#[derive(Debug, Clone)]
+struct NormalizedCoords {
+    cols: Vec<[f64; 5]>,
+    rows: Vec<[f64; 5]>,
+}
+
+impl NormalizedCoords {
+    fn new(intr: &SynthIntrinsics) -> Self {
+        let at = |n: usize, axis: usize, c: f64, f: f64| -> Vec<[f64; 5]> {
+            (0..n).map(|p| RAY_OFFSETS.map(|o| (p as f64 + o[axis] - c) / f)).collect()
+        };
+        Self {
+            cols: at(intr.width, 0, intr.cx, intr.fx),
+            rows: at(intr.height, 1, intr.cy, intr.fy),
+        }
+    }
+}
+
+/// Everything the render threads share.
 struct Job<'a> {
     scene: &'a Scene,
     intr: SynthIntrinsics,
@@ -95,6 +148,7 @@ struct Job<'a> {
     centre: RayFrame,
     /// Poses averaged for the gray image (one without motion blur).
     exposure: Vec<RayFrame>,
+    coords: NormalizedCoords,
     max_range_m: f64,
     /// Depth readings are dropped where `|cos(incidence)|` is below this.
     grazing_cos: f64,
@@ -124,6 +178,7 @@ pub(crate) fn render_frame(
         intr: seq.intrinsics,
         centre: RayFrame::new(&seq.pose_at(t), &seq.scene, &seq.intrinsics),
         exposure,
+        coords: NormalizedCoords::new(&seq.intrinsics),
         max_range_m: opts.max_range_m,
         grazing_cos: opts.grazing_limit_deg.map_or(0.0, |g| libm::cos(g.to_radians())),
         depth_noise_k: opts.depth_noise_k,
@@ -154,86 +209,136 @@ pub(crate) fn render_frame(
     Ok(())
 }
 
-/// Splits the rows into `threads` bands; the calling thread renders the first band and scoped
-/// threads the others.
+/// Renders the frame on `threads` threads (the calling one and scoped ones), each taking the next
+/// chunk of [`ROWS_PER_CHUNK`] rows from a shared queue until none is left.
 fn render_parallel(
     job: &Job<'_>,
     threads: usize,
     gray: &mut [u8],
     depth: &mut [u16],
 ) -> Result<(), SynthError> {
-    let rows_per_band = job.intr.height.div_ceil(threads);
-    let band = rows_per_band * job.intr.width;
+    let chunk = ROWS_PER_CHUNK * job.intr.width;
+    let queue = Mutex::new(gray.chunks_mut(chunk).zip(depth.chunks_mut(chunk)).enumerate());
+    // Renders chunks until the queue is empty; `false` if the queue's lock was poisoned (a
+    // worker panicked while taking a chunk).
+    let work = || {
+        let mut scratch = Scratch::new(job);
+        loop {
+            let Ok(mut items) = queue.lock() else { return false };
+            let next = items.next();
+            drop(items);
+            let Some((c, (g, d))) = next else { return true };
+            render_rows(job, c * ROWS_PER_CHUNK, g, d, &mut scratch);
+        }
+    };
     std::thread::scope(|s| {
-        let mut bands = gray.chunks_mut(band).zip(depth.chunks_mut(band)).enumerate();
-        let first = bands.next();
         let mut handles = Vec::with_capacity(threads);
         let mut spawn_failed = false;
-        for (b, (g, d)) in bands {
-            let y0 = b * rows_per_band;
-            match std::thread::Builder::new().spawn_scoped(s, move || render_rows(job, y0, g, d)) {
+        for _ in 1..threads {
+            match std::thread::Builder::new().spawn_scoped(s, work) {
                 Ok(handle) => handles.push(handle),
                 Err(_) => spawn_failed = true,
             }
         }
-        if let Some((_, (g, d))) = first {
-            render_rows(job, 0, g, d);
-        }
+        let mut ok = work();
         // Join every thread (a scope panics on a panicked thread left unjoined).
-        let mut joined = true;
         for handle in handles {
-            joined &= handle.join().is_ok();
+            ok &= handle.join().unwrap_or(false);
         }
-        if joined && !spawn_failed { Ok(()) } else { Err(SynthError::RenderThread) }
+        if ok && !spawn_failed { Ok(()) } else { Err(SynthError::RenderThread) }
     })
 }
 
-/// Renders the rows starting at `y0` into a band of the gray and depth buffers.
-fn render_rows(job: &Job<'_>, y0: usize, gray: &mut [u8], depth: &mut [u16]) {
+/// A render thread's scratch: the cast masks of the row being rendered, one per pixel for each
+/// exposure pose (pose-major) and for the centre pose, and its value-noise cache.
+struct Scratch {
+    exposure_masks: Vec<u32>,
+    centre_masks: Vec<u32>,
+    noise: NoiseCache,
+}
+
+impl Scratch {
+    fn new(job: &Job<'_>) -> Self {
+        let w = job.intr.width;
+        Self {
+            exposure_masks: vec![0; w * job.exposure.len()],
+            centre_masks: vec![0; w],
+            noise: NoiseCache::new(),
+        }
+    }
+
+    /// Fills the masks of row `y`.
+    fn fill_masks(&mut self, job: &Job<'_>, y: usize) {
+        let w = job.intr.width;
+        for (pose, masks) in job.exposure.iter().zip(self.exposure_masks.chunks_mut(w)) {
+            pose.row_masks(y as f64, masks);
+        }
+        job.centre.row_masks(y as f64, &mut self.centre_masks);
+    }
+}
+
+/// Renders the rows starting at `y0` into a chunk of the gray and depth buffers.
+fn render_rows(
+    job: &Job<'_>,
+    y0: usize,
+    gray: &mut [u8],
+    depth: &mut [u16],
+    scratch: &mut Scratch,
+) {
     let w = job.intr.width;
     for (r, (g_row, d_row)) in gray.chunks_mut(w).zip(depth.chunks_mut(w)).enumerate() {
         let y = y0 + r;
+        scratch.fill_masks(job, y);
+        let yn = &job.coords.rows[y];
         for (x, (g, d)) in g_row.iter_mut().zip(d_row.iter_mut()).enumerate() {
-            let mut rng = SplitMix64::keyed(job.seed, job.frame, (y * w + x) as u64);
             // Always draw both so that enabling one noise does not change the other.
             let (n_depth, n_gray) = if job.depth_noise_k > 0.0 || job.gray_noise_sigma > 0.0 {
+                let mut rng = SplitMix64::keyed(job.seed, job.frame, (y * w + x) as u64);
                 (rng.gaussian(), rng.gaussian())
             } else {
                 (0.0, 0.0)
             };
-            let radiance = pixel_radiance(job, x as f64, y as f64);
+            let xn = &job.coords.cols[x];
+            let radiance =
+                pixel_radiance(job, xn, yn, &scratch.exposure_masks[x..], &mut scratch.noise);
             let level = radiance * GRAY_GAIN + job.gray_noise_sigma * n_gray;
             // Round half up (the level is non-negative after the clamp).
             *g = (level.clamp(0.0, 255.0) + 0.5) as u8;
-            *d = pixel_depth(job, x as f64, y as f64, n_depth);
+            *d = pixel_depth(job, xn[CENTRE], yn[CENTRE], scratch.centre_masks[x], n_depth);
         }
     }
 }
 
-/// Mean radiance over the supersamples (and the exposure's poses) of pixel `(x, y)`.
+/// Mean radiance over the supersamples (and the exposure's poses) of a pixel: `xn`, `yn` are its
+/// column's and row's normalized coordinates, `masks[s * width]` its cast mask under pose `s`.
 #[inline]
-fn pixel_radiance(job: &Job<'_>, x: f64, y: f64) -> f64 {
-    let i = &job.intr;
+fn pixel_radiance(
+    job: &Job<'_>,
+    xn: &[f64; 5],
+    yn: &[f64; 5],
+    masks: &[u32],
+    noise: &mut NoiseCache,
+) -> f64 {
     let mut sum = 0.0;
-    for pose in &job.exposure {
-        let mask = pose.mask(x, y);
-        for [ox, oy] in SUBSAMPLES {
-            let dir = pose.dir((x + ox - i.cx) / i.fx, (y + oy - i.cy) / i.fy);
-            if let Some(hit) = job.scene.cast(&pose.origin, &dir, mask) {
-                sum += job.scene.radiance(&hit);
+    let masks = masks.iter().step_by(job.intr.width);
+    for (pose, &mask) in job.exposure.iter().zip(masks) {
+        for s in 0..SUBSAMPLES.len() {
+            let dir = pose.dir(xn[s], yn[s]);
+            if let Some(hit) = job.scene.cast_from(&pose.origin, &dir, mask) {
+                sum += job.scene.radiance(&hit, noise);
             }
         }
     }
     sum / (SUBSAMPLES.len() * job.exposure.len()) as f64
 }
 
-/// Raw depth of pixel `(x, y)`: the z-depth of the surface through the pixel centre, with noise
-/// `noise` (a standard normal sample) scaled by `k z^2`; 0 beyond range or at grazing incidence.
+/// Raw depth of the pixel whose centre ray has normalized coordinates `(xn, yn)` and cast mask
+/// `mask`: the z-depth of the surface it meets, with noise `noise` (a standard normal sample)
+/// scaled by `k z^2`; 0 beyond range or at grazing incidence.
 #[inline]
-fn pixel_depth(job: &Job<'_>, x: f64, y: f64, noise: f64) -> u16 {
-    let i = &job.intr;
-    let dir = job.centre.dir((x - i.cx) / i.fx, (y - i.cy) / i.fy);
-    let Some(hit) = job.scene.cast(&job.centre.origin, &dir, job.centre.mask(x, y)) else {
+fn pixel_depth(job: &Job<'_>, xn: f64, yn: f64, mask: u32, noise: f64) -> u16 {
+    let dir = job.centre.dir(xn, yn);
+    let Some(hit) = job.scene.cast_from(&job.centre.origin, &dir, mask) else {
         return 0;
     };
     let z = hit.t;
@@ -244,7 +349,7 @@ fn pixel_depth(job: &Job<'_>, x: f64, y: f64, noise: f64) -> u16 {
         return 0;
     }
     let z = z + job.depth_noise_k * z * z * noise;
-    ((z * i.depth_scale).clamp(1.0, f64::from(u16::MAX)) + 0.5) as u16
+    ((z * job.intr.depth_scale).clamp(1.0, f64::from(u16::MAX)) + 0.5) as u16
 }
 
 /// Zeroes elliptic blobs of the depth image until about `fraction` of the pixels are covered.
@@ -284,10 +389,13 @@ fn punch_holes(depth: &mut [u16], w: usize, h: usize, fraction: f64, mut rng: Sp
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Point3;
+
     use super::*;
     use crate::synth::SynthOptions;
 
-    /// The screen-rectangle culling never changes a hit.
+    /// The screen-rectangle culling (per pixel or per row) and the prepared origin never change
+    /// a hit; the normalized coordinates are the per-pixel divisions.
     #[test]
     fn culling_gives_the_same_hits_as_testing_everything() {
         let seq = SyntheticSequence::new(SynthOptions {
@@ -299,17 +407,23 @@ mod tests {
         let intr = seq.intrinsics;
         for t in [0.0, 1.3, 2.9, 4.4, 6.1, 8.8] {
             let frame = RayFrame::new(&seq.pose_at(t), &seq.scene, &intr);
+            let coords = NormalizedCoords::new(&intr);
+            let mut row_masks = vec![0; intr.width];
             let mut culled = 0;
             for y in 0..intr.height {
-                for x in 0..intr.width {
+                frame.row_masks(y as f64, &mut row_masks);
+                for (x, &row_mask) in row_masks.iter().enumerate() {
                     let (xf, yf) = (x as f64, y as f64);
                     let mask = frame.mask(xf, yf);
+                    assert_eq!(row_mask, mask, "t {t} pixel ({x}, {y})");
                     culled += (mask != (1 << seq.scene.object_count()) - 1) as usize;
-                    for [ox, oy] in SUBSAMPLES.iter().copied().chain([[0.0, 0.0]]) {
-                        let dir =
-                            frame.dir((xf + ox - intr.cx) / intr.fx, (yf + oy - intr.cy) / intr.fy);
-                        let a = seq.scene.cast(&frame.origin, &dir, mask);
-                        let b = seq.scene.cast(&frame.origin, &dir, u32::MAX);
+                    for (s, [ox, oy]) in RAY_OFFSETS.into_iter().enumerate() {
+                        let (xn, yn) =
+                            ((xf + ox - intr.cx) / intr.fx, (yf + oy - intr.cy) / intr.fy);
+                        assert_eq!([coords.cols[x][s], coords.rows[y][s]], [xn, yn]);
+                        let dir = frame.dir(xn, yn);
+                        let a = seq.scene.cast_from(&frame.origin, &dir, mask);
+                        let b = seq.scene.cast(frame.origin.origin(), &dir, u32::MAX);
                         assert_eq!(a, b, "t {t} pixel ({x}, {y})");
                     }
                 }

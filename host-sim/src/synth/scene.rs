@@ -13,8 +13,8 @@
 use nalgebra::{Point3, Vector3};
 
 use super::face::FaceId;
-use super::poster::{Poster, PosterKind};
-use super::rng::SplitMix64;
+use super::noise::NoiseCache;
+use super::poster::{Poster, demo_posters};
 use super::texture::Material;
 
 /// Minimum of the room's interior in world coordinates (metres).
@@ -88,20 +88,36 @@ impl SceneBox {
         [self.cos_yaw * x + self.sin_yaw * y, -self.sin_yaw * x + self.cos_yaw * y, z]
     }
 
-    /// Entry `(t, face)` of the ray, if it enters the box in front of its origin. `o`, `d` are
-    /// box-local, `inv` holds `1 / d` per axis.
-    fn intersect(&self, o: &[f64; 3], d: &[f64; 3], inv: &[f64; 3]) -> Option<(f64, u8)> {
+    /// Whether the box's axes are the world's (no yaw): then a ray's direction and reciprocals
+    /// are already box-local.
+    fn is_axis_aligned(&self) -> bool {
+        self.sin_yaw == 0.0 && self.cos_yaw == 1.0
+    }
+
+    /// The box's part of a [`CastOrigin`]: `origin` in box-local coordinates and its slab gaps.
+    fn local_origin(&self, origin: &Point3<f64>) -> LocalOrigin {
+        let o = self.to_local(&origin.coords, true);
+        LocalOrigin {
+            o,
+            gap_min: [0, 1, 2].map(|a| -self.half[a] - o[a]),
+            gap_max: [0, 1, 2].map(|a| self.half[a] - o[a]),
+        }
+    }
+
+    /// Entry `(t, face)` of the ray, if it enters the box in front of its origin. `local` is the
+    /// origin prepared for this box, `d` the box-local direction, `inv` holds `1 / d` per axis.
+    #[inline]
+    fn intersect(&self, local: &LocalOrigin, d: &[f64; 3], inv: &[f64; 3]) -> Option<(f64, u8)> {
         let (mut t_near, mut t_far, mut face) = (f64::NEG_INFINITY, f64::INFINITY, 0u8);
         for a in 0..3 {
-            let h = self.half[a];
             if d[a] == 0.0 {
-                if o[a].abs() >= h {
+                if local.o[a].abs() >= self.half[a] {
                     return None;
                 }
                 continue;
             }
-            let t1 = (-h - o[a]) * inv[a];
-            let t2 = (h - o[a]) * inv[a];
+            let t1 = local.gap_min[a] * inv[a];
+            let t2 = local.gap_max[a] * inv[a];
             // Entering through the minimum side when moving towards +axis.
             let (ta, tb, f) = if t1 < t2 { (t1, t2, 2 * a) } else { (t2, t1, 2 * a + 1) };
             if ta > t_near {
@@ -130,6 +146,35 @@ pub(crate) struct Sphere {
     material: Material,
 }
 
+/// A box's share of a [`CastOrigin`]: the origin in box-local coordinates (metres) and, per
+/// axis, `-half - o` and `half - o`, the numerators of the slab test.
+#[derive(Debug, Clone, PartialEq)]
+struct LocalOrigin {
+    o: [f64; 3],
+    gap_min: [f64; 3],
+    gap_max: [f64; 3],
+}
+
+/// A ray origin prepared for casting many rays from it ([`Scene::prepare`], [`Scene::cast_from`]):
+/// the parts of the room and box tests that depend on the origin alone, computed once. Casting
+/// from it gives exactly the bits of [`Scene::cast`] (the same expressions, evaluated earlier).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CastOrigin {
+    origin: Point3<f64>,
+    /// Per axis, `ROOM_MIN - origin` and `ROOM_MAX - origin`, metres.
+    room_gap: [[f64; 2]; 3],
+    /// Per box of the scene, in order.
+    boxes: Vec<LocalOrigin>,
+}
+
+impl CastOrigin {
+    /// The origin, world frame, metres.
+    #[cfg(test)]
+    pub(crate) fn origin(&self) -> &Point3<f64> {
+        &self.origin
+    }
+}
+
 /// The room with its furniture and posters.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Scene {
@@ -139,6 +184,8 @@ pub(crate) struct Scene {
     posters: Vec<Poster>,
     /// Per face slot, the range of `posters` on that face.
     poster_ranges: Vec<core::ops::Range<usize>>,
+    /// Per face slot, the material and the texture salt of the face (see [`Scene::index_faces`]).
+    surfaces: Vec<(Material, u32)>,
     room_materials: [Material; 6],
     light_dir: Vector3<f64>,
 }
@@ -193,6 +240,7 @@ impl Scene {
             spheres,
             posters: Vec::new(),
             poster_ranges: Vec::new(),
+            surfaces: Vec::new(),
             room_materials: [
                 Plaster,
                 WallTiles,
@@ -204,6 +252,7 @@ impl Scene {
             light_dir: Vector3::new(0.45, -0.6, 0.66).normalize(),
         };
         scene.set_posters(demo_posters());
+        scene.index_faces();
         scene
     }
 
@@ -214,6 +263,22 @@ impl Scene {
             FaceId::Box { index, face } => 6 + 6 * usize::from(index) + usize::from(face),
             FaceId::Sphere(i) => 6 + 6 * self.boxes.len() + usize::from(i),
         }
+    }
+
+    /// Every face, in slot order (see [`Scene::slot`]).
+    fn faces(&self) -> impl Iterator<Item = FaceId> {
+        let boxes = (0..self.boxes.len() as u8)
+            .flat_map(|index| (0..6).map(move |face| FaceId::Box { index, face }));
+        (0..6)
+            .map(FaceId::Room)
+            .chain(boxes)
+            .chain((0..self.spheres.len() as u8).map(FaceId::Sphere))
+    }
+
+    /// Tabulates each face's material and texture salt by slot, so that shading a hit looks them
+    /// up instead of matching and hashing.
+    fn index_faces(&mut self) {
+        self.surfaces = self.faces().map(|f| (self.material(f), f.salt())).collect();
     }
 
     /// Stores the posters grouped by face so that shading finds a face's posters directly.
@@ -266,32 +331,55 @@ impl Scene {
     /// The nearest hit of the ray `origin + t * dir`, `t > 0`, testing only the objects whose bit
     /// is set in `mask` (bit `k` = object `k`, see [`Scene::object_count`]; the room is always
     /// tested). `dir` need not be unit length. Inside the closed room every ray hits something;
-    /// `None` only for a degenerate direction.
+    /// `None` only for a degenerate direction. Many rays from one origin: [`Scene::cast_from`].
     pub(crate) fn cast(&self, origin: &Point3<f64>, dir: &Vector3<f64>, mask: u32) -> Option<Hit> {
+        self.cast_from(&self.prepare(origin), dir, mask)
+    }
+
+    /// `origin` prepared for [`Scene::cast_from`] (a few dozen operations per box).
+    pub(crate) fn prepare(&self, origin: &Point3<f64>) -> CastOrigin {
+        CastOrigin {
+            origin: *origin,
+            room_gap: [0, 1, 2].map(|a| [ROOM_MIN[a] - origin[a], ROOM_MAX[a] - origin[a]]),
+            boxes: self.boxes.iter().map(|b| b.local_origin(origin)).collect(),
+        }
+    }
+
+    /// [`Scene::cast`] from a prepared origin (of this scene), with the same result. Inlined into
+    /// each caller, so that a caller that needs only `t` drops the face coordinates.
+    #[inline(always)]
+    pub(crate) fn cast_from(
+        &self,
+        from: &CastOrigin,
+        dir: &Vector3<f64>,
+        mask: u32,
+    ) -> Option<Hit> {
+        let origin = &from.origin;
         let inv_world = [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z];
-        let (mut best_t, room_face) = Self::room_exit(origin, dir, &inv_world)?;
-        let mut best_box: Option<(usize, u8, [f64; 3], [f64; 3])> = None;
-        for (i, b) in self.boxes.iter().enumerate() {
-            if mask & (1 << i) == 0 {
-                continue;
-            }
-            let o = b.to_local(&origin.coords, true);
+        let (mut best_t, room_face) = Self::room_exit(&from.room_gap, dir, &inv_world)?;
+        let mut best_box: Option<(usize, u8, [f64; 3])> = None;
+        // Only the set bits, in increasing order (so ties go to the same object as a full scan).
+        let n_boxes = self.boxes.len();
+        let mut box_bits = if n_boxes >= 32 { mask } else { mask & ((1 << n_boxes) - 1) };
+        while box_bits != 0 {
+            let i = box_bits.trailing_zeros() as usize;
+            box_bits &= box_bits - 1;
+            let (Some(b), Some(local)) = (self.boxes.get(i), from.boxes.get(i)) else { break };
             // The rotation is about z: the z reciprocal is shared, and unrotated boxes share all.
-            let (d, inv) = if b.sin_yaw == 0.0 && b.cos_yaw == 1.0 {
+            let (d, inv) = if b.is_axis_aligned() {
                 ([dir.x, dir.y, dir.z], inv_world)
             } else {
                 let d = b.to_local(dir, false);
                 (d, [1.0 / d[0], 1.0 / d[1], inv_world[2]])
             };
-            if let Some((t, face)) = b.intersect(&o, &d, &inv)
+            if let Some((t, face)) = b.intersect(local, &d, &inv)
                 && t < best_t
             {
                 best_t = t;
-                best_box = Some((i, face, o, d));
+                best_box = Some((i, face, d));
             }
         }
         let mut best_sphere = None;
-        let n_boxes = self.boxes.len();
         for (i, s) in self.spheres.iter().enumerate() {
             if mask & (1 << (n_boxes + i)) == 0 {
                 continue;
@@ -307,24 +395,33 @@ impl Scene {
         if let Some(i) = best_sphere {
             return Some(self.sphere_hit(i, origin, dir, best_t));
         }
-        if let Some((i, face, o, d)) = best_box {
-            return Some(self.box_hit(i, face, &o, &d, best_t));
+        if let Some((i, face, d)) = best_box
+            && let Some(local) = from.boxes.get(i)
+        {
+            return Some(self.box_hit(i, face, &local.o, &d, best_t));
         }
         Some(Self::room_hit(origin, dir, best_t, room_face))
     }
 
     /// Radiance of a hit in `[0, 1]`: albedo times ambient plus Lambertian light. It depends on
-    /// the surface point only, never on the viewpoint.
-    pub(crate) fn radiance(&self, hit: &Hit) -> f64 {
-        let on_face =
-            self.poster_ranges.get(self.slot(hit.face)).and_then(|r| self.posters.get(r.clone()));
-        let albedo = on_face
-            .unwrap_or_default()
-            .iter()
-            .find_map(|p| p.albedo(hit.u, hit.v))
-            .unwrap_or_else(|| self.material(hit.face).albedo(hit.u, hit.v, hit.face.salt()));
+    /// the surface point only, never on the viewpoint (nor on `noise`, which only saves work).
+    pub(crate) fn radiance(&self, hit: &Hit, noise: &mut NoiseCache) -> f64 {
+        let slot = self.slot(hit.face);
+        let on_face = self.poster_ranges.get(slot).and_then(|r| self.posters.get(r.clone()));
+        let poster = on_face.unwrap_or_default().iter().find_map(|p| p.albedo(hit.u, hit.v, noise));
+        let albedo = poster.unwrap_or_else(|| self.surface_albedo(slot, hit, noise));
         let lambert = hit.normal.dot(&self.light_dir).max(0.0);
         albedo * (AMBIENT + DIFFUSE * lambert)
+    }
+
+    /// Albedo of the bare surface (no poster) at a hit on the face of slot `slot`.
+    fn surface_albedo(&self, slot: usize, hit: &Hit, noise: &mut NoiseCache) -> f64 {
+        let (material, salt) = self
+            .surfaces
+            .get(slot)
+            .copied()
+            .unwrap_or_else(|| (self.material(hit.face), hit.face.salt()));
+        material.albedo(hit.u, hit.v, salt, noise)
     }
 
     /// Distance from a world point to the nearest box, sphere, wall, floor or ceiling (metres).
@@ -356,14 +453,16 @@ impl Scene {
         }
     }
 
-    /// Where the ray leaves the room: `(t, face)`.
-    fn room_exit(o: &Point3<f64>, d: &Vector3<f64>, inv: &[f64; 3]) -> Option<(f64, u8)> {
+    /// Where the ray leaves the room: `(t, face)`. `gap` holds, per axis, `ROOM_MIN - origin` and
+    /// `ROOM_MAX - origin`; `inv` holds `1 / d`.
+    #[inline]
+    fn room_exit(gap: &[[f64; 2]; 3], d: &Vector3<f64>, inv: &[f64; 3]) -> Option<(f64, u8)> {
         let (mut t, mut face) = (f64::INFINITY, 0u8);
         for a in 0..3 {
             let (ta, f) = if d[a] > 0.0 {
-                ((ROOM_MAX[a] - o[a]) * inv[a], 2 * a + 1)
+                (gap[a][1] * inv[a], 2 * a + 1)
             } else if d[a] < 0.0 {
-                ((ROOM_MIN[a] - o[a]) * inv[a], 2 * a)
+                (gap[a][0] * inv[a], 2 * a)
             } else {
                 continue;
             };
@@ -432,62 +531,20 @@ fn sphere_t(s: &Sphere, o: &Point3<f64>, d: &Vector3<f64>) -> Option<f64> {
     (t > T_MIN).then_some(t)
 }
 
-/// The posters of the demo room (fixed layout; the shapes come from a fixed seed).
-fn demo_posters() -> Vec<Poster> {
-    let mut rng = SplitMix64::new(0x005E_ED0F_F00D);
-    let text = |face, origin, size, glyph_h, salt| Poster {
-        face,
-        origin,
-        size,
-        kind: PosterKind::Text { glyph_h, salt },
-    };
-    let north = FaceId::Room(3);
-    let west = FaceId::Room(0);
-    let east = FaceId::Room(1);
-    let south = FaceId::Room(2);
-    vec![
-        Poster::shapes(north, [-2.5, 1.0], [1.1, 0.9], 28, &mut rng),
-        text(north, [-1.1, 1.15], [0.9, 0.85], 0.035, 1),
-        Poster {
-            face: north,
-            origin: [0.2, 1.0],
-            size: [1.3, 0.9],
-            kind: PosterKind::Landscape { salt: 2 },
-        },
-        Poster { face: north, origin: [1.9, 1.2], size: [0.6, 0.6], kind: PosterKind::Logo },
-        Poster {
-            face: west,
-            origin: [-1.6, 0.8],
-            size: [1.0, 0.8],
-            kind: PosterKind::Checker { square_m: 0.1 },
-        },
-        Poster::shapes(west, [-0.2, 0.9], [1.2, 1.1], 35, &mut rng),
-        text(west, [1.2, 1.3], [0.7, 0.5], 0.06, 3),
-        text(east, [-1.5, 1.2], [1.0, 0.7], 0.025, 4),
-        Poster {
-            face: east,
-            origin: [0.2, 0.9],
-            size: [1.2, 0.9],
-            kind: PosterKind::Landscape { salt: 5 },
-        },
-        Poster::shapes(east, [-3.0, 1.0], [0.9, 0.8], 22, &mut rng),
-        Poster::shapes(south, [-0.6, 1.0], [1.2, 0.9], 30, &mut rng),
-        // The cabinet (box 2): a logo on its east face, text on its south face.
-        Poster {
-            face: FaceId::Box { index: 2, face: 1 },
-            origin: [-0.35, 1.1],
-            size: [0.7, 0.7],
-            kind: PosterKind::Logo,
-        },
-        text(FaceId::Box { index: 2, face: 2 }, [-0.3, 0.9], [0.6, 0.8], 0.03, 6),
-        // The pillar (box 5): shapes on its south face.
-        Poster::shapes(FaceId::Box { index: 5, face: 2 }, [-0.3, 0.5], [0.6, 0.8], 16, &mut rng),
-    ]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn faces_are_in_slot_order() {
+        let s = Scene::demo();
+        let faces: Vec<FaceId> = s.faces().collect();
+        assert_eq!(faces.len(), s.surfaces.len());
+        for (k, f) in faces.into_iter().enumerate() {
+            assert_eq!(s.slot(f), k);
+            assert_eq!(s.surfaces[k], (s.material(f), f.salt()));
+        }
+    }
 
     #[test]
     fn ray_to_north_wall() {
@@ -538,11 +595,12 @@ mod tests {
     fn radiance_is_bounded() {
         let s = Scene::demo();
         let o = Point3::new(0.0, -2.0, 1.4);
+        let mut noise = NoiseCache::new();
         for k in 0..500 {
             let a = f64::from(k) * 0.0126;
             let d = Vector3::new(libm::cos(a), libm::sin(a), 0.3 * libm::sin(7.0 * a));
             let h = s.cast(&o, &d, u32::MAX).unwrap();
-            let r = s.radiance(&h);
+            let r = s.radiance(&h, &mut noise);
             assert!((0.0..=1.0).contains(&r));
         }
     }
