@@ -141,7 +141,7 @@ fn library_example() -> Result<()> {
 }
 
 /// Inputs per fuzz target in CI (the `frames` target gets this over
-/// `fuzz::FRAMES_ITERATION_DIVISOR`): the same inputs on every run, chosen so that all targets
+/// `fuzz::FRAMES_ITERATION_DIVISOR`, `mcap` over `fuzz::MCAP_ITERATION_DIVISOR`): the same inputs on every run, chosen so that all targets
 /// together take about 70 s on the 2-core CI machine (docs/decisions.md, "Fuzzing on the stable
 /// toolchain").
 const FUZZ_ITERATIONS: u64 = 350_000;

@@ -34,6 +34,7 @@
 //! each target's speed: docs/decisions.md, "Fuzzing on the stable toolchain".
 
 mod corpus;
+mod formats;
 mod frames;
 mod mutate;
 mod repair;
@@ -78,6 +79,11 @@ pub struct Target {
 /// The `frames` target runs `--iterations N / FRAMES_ITERATION_DIVISOR` inputs (each is up to
 /// ten frames of SLAM, about a thousand times a parser input's cost).
 pub const FRAMES_ITERATION_DIVISOR: u64 = 400;
+
+/// The `mcap` target runs `--iterations N / MCAP_ITERATION_DIVISOR` inputs (each is written to
+/// a file the reader opens, and decompressed twice: about a millisecond, fifty times a text
+/// parser's input).
+pub const MCAP_ITERATION_DIVISOR: u64 = 35;
 
 /// Stack of the thread the targets run on: the core's structures are built on the stack before
 /// they are boxed, and a test thread's 2 MiB is not enough for every target's.
@@ -157,6 +163,48 @@ const PNG_TOKENS: &[&[u8]] = &[
     b"\x7F\xFF\xFF\xFF",
     b"\xFF\xD8\xFF",
 ];
+/// Tokens of MCAP: the magic, record opcodes, encodings and the message types the reader takes.
+const MCAP_TOKENS: &[&[u8]] = &[
+    b"\x89MCAP0\r\n",
+    b"\x01",
+    b"\x02",
+    b"\x03",
+    b"\x04",
+    b"\x05",
+    b"\x06",
+    b"\x08",
+    b"\x0c",
+    b"cdr",
+    b"ros2msg",
+    b"zstd",
+    b"rgb8",
+    b"mono8",
+    b"16UC1",
+    b"32FC1",
+    b"sensor_msgs/msg/Image",
+    b"sensor_msgs/msg/CameraInfo",
+    b"/groundtruth",
+    b"\x00\x01\x00\x00",
+    b"\xFF\xFF\xFF\xFF\xFF\xFF\xFF\x7F",
+];
+/// Tokens of anchor scripts: the table, keys, actions and values.
+const SCRIPT_TOKENS: &[&[u8]] = &[
+    b"[[step]]\n",
+    b"frame = ",
+    b"action = ",
+    b"\"place\"",
+    b"\"scale\"",
+    b"\"remove\"",
+    b"object = ",
+    b"pixel = [1.0, 2.0]",
+    b"scale = ",
+    b"nan",
+    b"inf",
+    b"-1",
+    b"65536",
+    b"1e39",
+    b"\n",
+];
 /// Whole frames of the `frames` target: a plausible one, a repeat, noise, a NaN time.
 const FRAME_TOKENS: &[&[u8]] = &[
     &[0, 1, 4, 0, 33, 22, 0, 0],
@@ -167,7 +215,7 @@ const FRAME_TOKENS: &[&[u8]] = &[
 ];
 
 /// Every target, in the order they run.
-pub const TARGETS: [Target; 8] = [
+pub const TARGETS: [Target; 10] = [
     Target {
         name: "map-file",
         unit: "inputs",
@@ -231,6 +279,18 @@ pub const TARGETS: [Target; 8] = [
         run: targets::image,
     },
     Target {
+        name: "mcap",
+        unit: "recordings",
+        shape: Shape { max_len: 16 * 1024, dictionary: MCAP_TOKENS, repair: None, text: false },
+        run: formats::mcap,
+    },
+    Target {
+        name: "anchor-script",
+        unit: "scripts",
+        shape: Shape { max_len: 4096, dictionary: SCRIPT_TOKENS, repair: None, text: true },
+        run: formats::anchor_script,
+    },
+    Target {
         name: "frames",
         unit: "frames",
         shape: Shape {
@@ -264,7 +324,11 @@ impl Budget {
 
 /// Inputs `target` runs under `--iterations n`.
 pub fn iterations_for(target: &Target, n: u64) -> u64 {
-    if target.name == "frames" { (n / FRAMES_ITERATION_DIVISOR).max(1) } else { n }
+    match target.name {
+        "frames" => (n / FRAMES_ITERATION_DIVISOR).max(1),
+        "mcap" => (n / MCAP_ITERATION_DIVISOR).max(1),
+        _ => n,
+    }
 }
 
 /// The command line of `cargo xtask fuzz`.
@@ -446,8 +510,11 @@ mod tests {
     fn every_target_runs_its_corpus_and_mutations_without_failing() {
         for target in TARGETS {
             let seeds = load_corpus(&corpus_dir().join(target.name)).unwrap();
-            let iterations =
-                if target.name == "frames" { 3 * FRAMES_ITERATION_DIVISOR } else { 300 };
+            let iterations = match target.name {
+                "frames" => 3 * FRAMES_ITERATION_DIVISOR,
+                "mcap" => 30 * MCAP_ITERATION_DIVISOR,
+                _ => 300,
+            };
             let report =
                 on_worker(move || fuzz_target(&target, &seeds, Budget::Iterations(iterations), 1))
                     .unwrap();

@@ -62,6 +62,8 @@ pub fn write_all(dir: &Path) -> Result<()> {
         ("lists", list_seeds(&seven)?),
         ("trajectory", trajectory_seeds(&seven, &demo)?),
         ("image", image_seeds(&seven)?),
+        ("mcap", mcap_seeds()?),
+        ("anchor-script", anchor_script_seeds()?),
         ("frames", frame_seeds()),
     ];
     for (target, files) in seeds {
@@ -337,4 +339,38 @@ fn frame_seeds() -> Seeds {
             ),
         ),
     ]
+}
+
+/// `mcap`: the built-in demo's first two frames at 16 x 16 written as a TUM folder, converted
+/// (`ferroslam-sim convert`: zstd chunks, CameraInfo, ground truth, the calibration carried).
+fn mcap_seeds() -> Result<Seeds> {
+    use ferroslam_sim::dataset::CalibrationSource;
+    use ferroslam_sim::demo::{DemoOptions, write_dataset};
+    let scratch = root().join("target/fuzz/scratch/mcap-seeds");
+    let folder = scratch.join("demo");
+    let mut options = DemoOptions::new(None);
+    options.synth.width = 16;
+    options.synth.height = 16;
+    options.synth.frames = 2;
+    write_dataset(&folder, &options, "fuzz seeds")?;
+    let file = scratch.join("demo.mcap");
+    ferroslam_sim::dataset::mcap::convert_to_mcap(&folder, &file, &CalibrationSource::File)?;
+    let bytes = std::fs::read(&file)?;
+    let footer = bytes.len().saturating_sub(8 + 29);
+    Ok(vec![
+        ("demo-2-frames.mcap".into(), bytes.clone()),
+        ("demo-cut.mcap".into(), bytes[..footer].to_vec()),
+    ])
+}
+
+/// `anchor-script`: the example script of `docs/anchor-scripts/demo-restart.toml`, and one
+/// step of each action.
+fn anchor_script_seeds() -> Result<Seeds> {
+    let example = root().join("docs/anchor-scripts/demo-restart.toml");
+    let mut seeds: Seeds = vec![("demo-restart.toml".into(), read_text(&example)?.into_bytes())];
+    let each = "[[step]]\nframe = 2\naction = \"place\"\nobject = 5\npixel = [248.0, 426.0]\nscale = 1.5\n\n\
+                [[step]]\nframe = 6\naction = \"scale\"\nobject = 5\nscale = 2.0\n\n\
+                [[step]]\nframe = 10\naction = \"remove\"\nobject = 5\n";
+    seeds.push(("each-action.toml".into(), each.as_bytes().to_vec()));
+    Ok(seeds)
 }

@@ -76,6 +76,85 @@ impl std::fmt::Debug for McapFile {
     }
 }
 
+/// The largest chunk this reader decompresses, bytes (the `mcap` crate reserves a chunk's
+/// declared uncompressed size before reading it, so a damaged size would abort the process;
+/// recorders write chunks of a few megabytes).
+const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
+/// Opcode of a chunk record.
+const CHUNK_OPCODE: u8 = 0x06;
+
+/// Walks the records after the magic and refuses a chunk record whose declared uncompressed size
+/// is over [`MAX_CHUNK_BYTES`]. Records whose lengths run past the end stop the walk (the reader
+/// then says what is wrong).
+fn check_chunk_sizes(bytes: &[u8]) -> Result<(), String> {
+    let u64_at = |at: usize| -> Option<u64> {
+        bytes
+            .get(at..at.checked_add(8)?)
+            .map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+    };
+    let mut at = mcap::MAGIC.len();
+    while let (Some(&opcode), Some(length)) = (bytes.get(at), u64_at(at + 1)) {
+        let body = at + 9;
+        if opcode == CHUNK_OPCODE {
+            // Message start and end times (8 bytes each), then the uncompressed size.
+            if let Some(size) = u64_at(body + 16).filter(|&s| s > MAX_CHUNK_BYTES) {
+                return Err(format!(
+                    "a chunk at byte {at} says {size} bytes uncompressed, over the \
+                     {MAX_CHUNK_BYTES} this reader takes"
+                ));
+            }
+        }
+        let Some(next) = usize::try_from(length).ok().and_then(|l| body.checked_add(l)) else {
+            break;
+        };
+        at = next;
+    }
+    Ok(())
+}
+
+/// Reads the file once start to end, chunks decompressed, with the `mcap` crate's record length
+/// limit at [`MAX_CHUNK_BYTES`], and refuses a record over it. The crate's message stream and
+/// chunk reader set no limit and reserve a record's declared length before reading it, so a
+/// damaged length inside a compressed chunk would abort the process; after this pass the file
+/// holds none. Other errors are left to the reading that follows, which says them in its terms.
+/// Cost: one decompression of every chunk.
+fn check_record_lengths(bytes: &[u8]) -> Result<(), String> {
+    check_records_from(bytes, false, false)
+}
+
+/// [`check_record_lengths`] of `bytes`, a whole file or (`records_only`) records without the
+/// file's magic, as a chunk index addresses them; `strict`: any error of the reading is one.
+fn check_records_from(bytes: &[u8], records_only: bool, strict: bool) -> Result<(), String> {
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let limit = usize::try_from(MAX_CHUNK_BYTES).unwrap_or(usize::MAX);
+    let options = LinearReaderOptions::default()
+        .with_record_length_limit(limit)
+        .with_skip_start_magic(records_only)
+        .with_skip_end_magic(records_only);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut rest = bytes;
+    while let Some(event) = reader.next_event() {
+        match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let n = need.min(rest.len());
+                reader.insert(n).copy_from_slice(&rest[..n]);
+                reader.notify_read(n);
+                rest = &rest[n..];
+            }
+            Ok(LinearReadEvent::Record { .. }) => {}
+            Err(
+                e @ (mcap::McapError::RecordTooLarge { .. } | mcap::McapError::ChunkTooLarge(_)),
+            ) => {
+                return Err(e.to_string());
+            }
+            Err(e) if strict => return Err(e.to_string()),
+            Err(_) => break,
+        }
+    }
+    Ok(())
+}
+
 /// The MCAP reader's error, said about `path`.
 fn malformed(path: &Path, e: impl std::fmt::Display) -> McapError {
     McapError::Malformed { path: path.to_owned(), reason: e.to_string() }
@@ -93,7 +172,16 @@ impl McapFile {
         if !bytes.starts_with(mcap::MAGIC) {
             return Err(malformed(path, "it does not start with the MCAP magic").into());
         }
+        check_chunk_sizes(&bytes).map_err(|e| malformed(path, e))?;
+        check_record_lengths(&bytes).map_err(|e| malformed(path, e))?;
         let summary = Summary::read(&bytes).map_err(|e| malformed(path, e))?;
+        let oversized = summary
+            .as_ref()
+            .and_then(|s| s.chunk_indexes.iter().find(|c| c.uncompressed_size > MAX_CHUNK_BYTES));
+        if let Some(c) = oversized {
+            let size = c.uncompressed_size;
+            return Err(malformed(path, format!("a chunk index says {size} bytes uncompressed, over the {MAX_CHUNK_BYTES} this reader takes")).into());
+        }
         Ok(Self { path: path.to_owned(), bytes, summary, indexed: false })
     }
 
@@ -234,6 +322,25 @@ fn fully_indexed(bytes: &[u8], summary: &Summary) -> bool {
             && c.message_index_offsets.values().all(|&o| within(o, MIN_MESSAGE_INDEX_LEN))
     });
     if !sane {
+        return false;
+    }
+    // The crate's chunk reader sets no record length limit: each indexed chunk is read once with
+    // one first (the index may address other bytes than a start-to-end reading visits), and a
+    // chunk that does not read cleanly so sends the file to the start-to-end reading.
+    let chunks_ok = summary.chunk_indexes.iter().all(|c| {
+        let (start, end) =
+            (c.chunk_start_offset as usize, (c.chunk_start_offset + c.chunk_length) as usize);
+        // Read as the crate's chunk reader reads it: a chunk record of the index's length,
+        // whatever opcode the file has there.
+        bytes.get(start.saturating_add(9)..end).is_some_and(|body| {
+            let mut record = Vec::with_capacity(body.len() + 9);
+            record.push(CHUNK_OPCODE);
+            record.extend_from_slice(&(body.len() as u64).to_le_bytes());
+            record.extend_from_slice(body);
+            check_records_from(&record, true, true).is_ok()
+        })
+    });
+    if !chunks_ok {
         return false;
     }
     let mut indexed = 0u64;
