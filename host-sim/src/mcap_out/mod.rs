@@ -29,9 +29,8 @@
 //!
 //! The file is written after the run, from its [`TrackingRun`]: the final poses are known only
 //! then. It is reproducible: the same run gives the same bytes (no wall-clock time anywhere,
-//! messages in time order then topic order, zstd compression single-threaded), in chunks of 1
-//! MiB (the `mcap` crate's default), zstd-compressed, with the crate's default indexes and
-//! summary.
+//! messages in time order then topic order, zstd on the writing thread), in chunks of 1 MiB
+//! (the `mcap` crate's default), zstd-compressed, with the crate's default indexes and summary.
 
 pub mod content;
 pub mod foxglove;
@@ -74,8 +73,8 @@ pub struct McapWritten {
 }
 
 /// The `mcap` writer's options: zstd chunks of the crate's default size, compressed on this
-/// thread (a multi-threaded zstd stream would depend on the machine's cores), and this program
-/// as the library (not the crate's version).
+/// thread (the crate's default starts a worker per physical core: nothing in the output is left
+/// to the machine), and this program as the library (not the crate's version).
 fn write_options() -> mcap::WriteOptions {
     mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
