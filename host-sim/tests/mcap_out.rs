@@ -1,6 +1,7 @@
 //! `--mcap OUT`: a short demo's MCAP file read back with the `mcap` crate: every channel a
 //! Foxglove schema in JSON, every message JSON with its schema's fields, one pose per posed
-//! frame, the map's points; the same run gives the same bytes; an unwritable file is named.
+//! frame, the map's points; the same run gives the same bytes; a scripted object's place and
+//! remove as scene updates and log lines; an unwritable file is named.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -116,6 +117,44 @@ fn a_demo_mcap_reads_back_as_foxglove_messages() {
     let args = ["--frames", "15", "--ar", "--mcap", again.to_str().unwrap()];
     run_demo(&args, &dir.path().join("again")).unwrap();
     assert!(std::fs::read(&again).unwrap() == bytes, "the file is reproducible");
+}
+
+/// The messages of the MCAP file `bytes`: topic and JSON body, in the file's order.
+fn topics_and_bodies(bytes: &[u8]) -> Vec<(String, Value)> {
+    let stream = mcap::MessageStream::new(bytes).unwrap();
+    let body = |m: mcap::Message| serde_json::from_slice(&m.data).unwrap();
+    stream.map(|m| m.unwrap()).map(|m| (m.channel.topic.clone(), body(m))).collect()
+}
+
+#[test]
+fn scripted_anchors_are_placed_and_removed_with_log_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let (script, file) = (dir.path().join("anchors.toml"), dir.path().join("run.mcap"));
+    let step = |frame, action, extra| {
+        format!("[[step]]\nframe = {frame}\naction = \"{action}\"\nobject = 0\n{extra}\n")
+    };
+    let text =
+        [step(2, "place", "pixel = [320.0, 400.0]"), step(4, "remove", ""), step(5, "remove", "")]
+            .concat();
+    std::fs::write(&script, text).unwrap();
+    let (script_text, file_text) = (script.to_str().unwrap(), file.to_str().unwrap());
+    let args = ["--frames", "8", "--anchors", script_text, "--mcap", file_text];
+    run_demo(&args, &dir.path().join("run")).unwrap();
+    let messages = topics_and_bodies(&std::fs::read(&file).unwrap());
+    let on = |topic: &str| -> Vec<&Value> {
+        messages.iter().filter(|(t, _)| t == topic).map(|(_, b)| b).collect()
+    };
+    let anchors = on("/ar/anchors");
+    assert_eq!(anchors.len(), 2, "placed, then removed: {anchors:?}");
+    assert_eq!(anchors[0]["entities"][0]["id"], "object-0");
+    assert_eq!(anchors[1]["deletions"][0]["id"], "object-0");
+    assert_eq!(anchors[1]["deletions"][0]["type"], 0, "MATCHING_ID");
+    let events: Vec<&str> = on("/events").iter().filter_map(|b| b["message"].as_str()).collect();
+    assert_eq!(events.len(), 3, "{events:?}");
+    assert!(events[0].starts_with("frame 2: anchor script line 1: place 0"), "{events:?}");
+    assert!(events[1].ends_with("remove 0: done"), "{events:?}");
+    assert!(events[2].contains("refused"), "the second remove has nothing to remove: {events:?}");
+    assert_eq!(on("/events")[2]["level"], 3, "a refused step is a warning");
 }
 
 #[test]

@@ -220,7 +220,7 @@ fn anchor_updates(ar: &ArRun, frame_time: impl Fn(usize) -> Time) -> Vec<(Time, 
     let mut out = Vec::new();
     for a in &ar.anchors {
         let time = frame_time(a.frame);
-        let side = f64::from(CUBE_SIDE_M * a.scale);
+        let side = foxglove::short(CUBE_SIDE_M * a.scale);
         let up = Vector3::new(f64::from(a.up[0]), f64::from(a.up[1]), f64::from(a.up[2]));
         let centre = translation(a.position_m).vector + up * (side / 2.0);
         let pose = Isometry3::from_parts(centre.into(), z_onto(a.up));
