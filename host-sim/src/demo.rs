@@ -6,7 +6,7 @@
 //! path and, unless the options ask for the data path alone, the odometry or SLAM tracker
 //! ([`run::track`]), writes the output folder and returns what it wrote. Nothing here prints.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -15,6 +15,7 @@ use ferroslam_core::geometry::PinholeCamera;
 use nalgebra::{Isometry3, Vector3};
 
 use crate::eval;
+use crate::mcap_out::write_run_mcap;
 use crate::plane_truth::{ar_accuracy, first_keyframe_alignment, plane_accuracy, true_planes};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
@@ -43,6 +44,9 @@ pub struct DemoOptions {
     /// Which virtual objects to place; their pixel error is measured (SLAM mode; `--ar`,
     /// `--anchors`; `None`: no AR).
     pub ar: Option<crate::run::ArPlan>,
+    /// Also write the run's results to this MCAP file of Foxglove messages
+    /// ([`crate::mcap_out`]; odometry and SLAM modes; `--mcap`).
+    pub mcap: Option<PathBuf>,
 }
 
 impl DemoOptions {
@@ -56,6 +60,7 @@ impl DemoOptions {
             depth_level: None,
             progress_bar: true,
             ar: None,
+            mcap: None,
         }
     }
 }
@@ -69,12 +74,18 @@ impl Default for DemoOptions {
 
 /// Renders the sequence and runs it as `options` say, writing into `out` (created if missing):
 /// `groundtruth.txt` and the first frame's images (`frame0*.png`) always; in odometry and SLAM
-/// modes what [`write_odometry`] writes; in data-path mode `report.json`,
-/// `baseline_trajectory.txt`, its evaluation `baseline_eval.json` and plots.
+/// modes what [`write_odometry`] writes, and the MCAP file `options.mcap` names; in data-path
+/// mode `report.json`, `baseline_trajectory.txt`, its evaluation `baseline_eval.json` and plots.
 ///
 /// # Errors
-/// Invalid options (a start past the last frame among them), or a file that cannot be written.
+/// Invalid options (a start past the last frame among them, an MCAP file asked of the data
+/// path), or a file that cannot be written.
 pub fn demo(out: &Path, options: &DemoOptions) -> Result<RunOutputs> {
+    if options.mode.is_none()
+        && let Some(path) = &options.mcap
+    {
+        anyhow::bail!("--mcap {}: the data path alone has no poses to write", path.display());
+    }
     let sequence = SyntheticSequence::new(options.synth.clone())?;
     if options.skip_frames >= sequence.len() {
         anyhow::bail!(
@@ -160,6 +171,9 @@ fn track(
     }
     if report.plane_accuracy.is_some() || report.ar.is_some() {
         report.write_with_page(out, &written.scene)?;
+    }
+    if let Some(path) = &options.mcap {
+        write_run_mcap(path, &run, written.evaluation.as_ref())?;
     }
     Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })
 }

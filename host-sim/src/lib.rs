@@ -17,6 +17,7 @@
 //! - [`map_file`]: saved map files read and checked whole, summarized, written as PLY;
 //! - [`report`]: what a run writes (report.json, trajectories, plots) and the console summary;
 //! - [`page`]: report.html, the run's self-contained page with a 3D view of its map;
+//! - [`mcap_out`]: a run's results as an MCAP file of Foxglove messages (`--mcap`);
 //! - [`replay`] and [`demo`]: a recorded folder or the synthetic sequence opened, run and written
 //!   out, returning the typed report: what `ferroslam-sim replay` and `demo` do, which xtask
 //!   calls in process;
@@ -31,6 +32,7 @@ pub mod eval;
 pub mod faults;
 pub mod frame;
 pub mod map_file;
+pub mod mcap_out;
 pub mod page;
 pub mod plane_truth;
 pub mod plot;

@@ -19,6 +19,7 @@ use serde::Serialize;
 use crate::eval::EvalReport;
 use crate::report::Report;
 use crate::run::TrackingRun;
+use crate::trajectory::StampedPose;
 
 /// The 3D view's data: what a run's page draws.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -53,17 +54,7 @@ impl Scene {
         let trajectory: Vec<[f32; 3]> =
             run.camera.poses.iter().map(|p| position(&p.t_wc)).collect();
         let ground_truth = evaluation
-            .map(|e| {
-                let a = &e.alignment;
-                let [qx, qy, qz, qw] = a.quaternion_xyzw;
-                let [x, y, z] = a.translation_m;
-                let t_gt_est = Isometry3::from_parts(
-                    Translation3::new(x, y, z),
-                    UnitQuaternion::from_quaternion(Quaternion::new(qw, qx, qy, qz)),
-                );
-                let t_est_gt = t_gt_est.inverse();
-                e.matches.iter().map(|m| position(&(t_est_gt * m.gt.t_wc))).collect()
-            })
+            .map(|e| ground_truth_in_run_world(e).iter().map(|p| position(&p.t_wc)).collect())
             .unwrap_or_default();
         let keyframes = run
             .keyframes
@@ -106,6 +97,24 @@ impl Scene {
             .map_or_else(Default::default, |c| (c.points.clone(), c.newest.clone()));
         Self { trajectory, ground_truth, keyframes, points, newest, loops, planes, anchors }
     }
+}
+
+/// The ground-truth poses `evaluation` matched, moved into the run's world by the inverse of
+/// its alignment (which takes the estimate onto the ground truth), in time order.
+pub fn ground_truth_in_run_world(evaluation: &EvalReport) -> Vec<StampedPose> {
+    let a = &evaluation.alignment;
+    let [qx, qy, qz, qw] = a.quaternion_xyzw;
+    let [x, y, z] = a.translation_m;
+    let t_gt_est = Isometry3::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_quaternion(Quaternion::new(qw, qx, qy, qz)),
+    );
+    let t_est_gt = t_gt_est.inverse();
+    let moved = |m: &crate::eval::MatchedPose| StampedPose {
+        timestamp_s: m.gt.timestamp_s,
+        t_wc: t_est_gt * m.gt.t_wc,
+    };
+    evaluation.matches.iter().map(moved).collect()
 }
 
 /// Writes `dir/report.html`: `report`'s summary, the plots `dir` holds (trajectory.svg, ate.svg)

@@ -7,7 +7,7 @@
 //! folder ([`crate::report`]) and returns what it wrote, the typed [`Report`] among it.
 //! [`replay`] does both. Nothing here prints: the caller decides what the console shows.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -17,6 +17,7 @@ use nalgebra::Point3;
 
 use crate::dataset::{Dataset, DatasetOptions, SkipReason, Stream};
 use crate::eval;
+use crate::mcap_out::write_run_mcap;
 use crate::plane_truth::{ArAccuracy, ar_accuracy_with_gt};
 use crate::plot;
 use crate::report::{Report, RunOutputs, run_note, with_depth_level, write_odometry};
@@ -54,6 +55,9 @@ pub struct ReplayOptions {
     /// Which virtual objects to place; with ground truth, their pixel error is measured (SLAM
     /// mode; `--ar`, `--anchors`; `None`: no AR).
     pub ar: Option<crate::run::ArPlan>,
+    /// Also write the run's results to this MCAP file of Foxglove messages
+    /// ([`crate::mcap_out`]; odometry and SLAM modes; `--mcap`).
+    pub mcap: Option<PathBuf>,
 }
 
 impl ReplayOptions {
@@ -68,6 +72,7 @@ impl ReplayOptions {
             maps: MapFiles::default(),
             strict: false,
             ar: None,
+            mcap: None,
         }
     }
 }
@@ -124,12 +129,18 @@ impl Replay {
     /// Runs every frame and writes into `out` (created if missing): `report.json` always; in
     /// odometry and SLAM modes `CameraTrajectory.txt` and `KeyFrameTrajectory.txt`, and with
     /// ground truth `trajectory.svg` and `ate.svg` (see [`write_odometry`]); in data-path mode,
-    /// with ground truth, its plot `trajectory.svg`.
+    /// with ground truth, its plot `trajectory.svg`. [`ReplayOptions::mcap`] names an MCAP file
+    /// to write the tracking run's results to as well.
     ///
     /// # Errors
     /// A frame that cannot be read or decoded (naming it), a frame the core rejects, a back-end
-    /// error, a file that cannot be written.
+    /// error, a file that cannot be written, an MCAP file asked of the data path.
     pub fn run(self, out: &Path) -> Result<RunOutputs> {
+        if self.options.mode.is_none()
+            && let Some(path) = &self.options.mcap
+        {
+            bail!("--mcap {}: the data path alone has no poses to write", path.display());
+        }
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         match self.options.mode {
             Some(mode) => self.track(mode, out),
@@ -179,6 +190,9 @@ impl Replay {
                 None => ArAccuracy::unmeasured(ar),
             });
             report.write_with_page(out, &written.scene)?;
+        }
+        if let Some(path) = &options.mcap {
+            write_run_mcap(path, &run, written.evaluation.as_ref())?;
         }
         Ok(RunOutputs { report, evaluation: written.evaluation, wall_s })
     }

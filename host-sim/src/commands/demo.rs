@@ -83,6 +83,12 @@ pub struct DemoArgs {
     /// `pixel = [u, v]` in the sensor's pixels, `scale`); measured as `--ar` is. SLAM mode.
     #[arg(long, value_name = "FILE")]
     pub anchors: Option<PathBuf>,
+    /// Also write the run's results as an MCAP file of Foxglove messages (JSON) that Foxglove
+    /// and other MCAP tools open: camera poses and /tf, the trajectory, the map's points,
+    /// keyframes, planes, AR objects, events, the aligned ground truth (odometry and SLAM
+    /// modes).
+    #[arg(long, value_name = "OUT.mcap")]
+    pub mcap: Option<PathBuf>,
 }
 
 impl DemoArgs {
@@ -159,6 +165,7 @@ impl DemoArgs {
             skip_frames: self.skip_frames,
             depth_level: self.depth_level,
             ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
+            mcap: self.mcap.clone(),
             ..DemoOptions::new(self.mode.track_mode(&self.slam))
         })
     }
@@ -197,6 +204,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     if args.mode != ModeArg::DataPath {
         println!("demo: {}", summary(&report, wall_s));
         println!("  wrote {}", out.display());
+        if let Some(path) = &args.mcap {
+            println!("  wrote {}", path.display());
+        }
         return Ok(());
     }
     println!("demo: {}.", report.note);

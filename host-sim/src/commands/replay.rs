@@ -100,6 +100,12 @@ pub struct ReplayArgs {
     /// `pixel = [u, v]` in the recording's pixels, `scale`); measured as `--ar` is. SLAM mode.
     #[arg(long, value_name = "FILE")]
     pub anchors: Option<PathBuf>,
+    /// Also write the run's results as an MCAP file of Foxglove messages (JSON) that Foxglove
+    /// and other MCAP tools open: camera poses and /tf, the trajectory, the map's points,
+    /// keyframes, planes, AR objects, events, the aligned ground truth (odometry and SLAM
+    /// modes).
+    #[arg(long, value_name = "OUT.mcap")]
+    pub mcap: Option<PathBuf>,
 }
 
 impl ReplayArgs {
@@ -146,6 +152,7 @@ impl ReplayArgs {
             },
             strict: self.strict,
             ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
+            mcap: self.mcap.clone(),
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
         })
     }
@@ -173,6 +180,9 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let dataset = args.dataset.display();
     if args.mode != ModeArg::DataPath {
         println!("replay {dataset}: {}", summary(&report, wall_s));
+        if let Some(path) = &args.mcap {
+            println!("  wrote {}", path.display());
+        }
         return Ok(());
     }
     println!("replay {dataset}: {}", report.note);

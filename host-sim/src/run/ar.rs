@@ -25,10 +25,10 @@ const OBJECTS: u16 = 2;
 const OVERLAY_EVERY: usize = 3;
 
 /// An object's cube side at scale 1, metres.
-const CUBE_SIDE_M: f32 = 0.15;
+pub const CUBE_SIDE_M: f32 = 0.15;
 
 /// Its colours, by object id (red, blue, then green).
-const COLOURS: [[u8; 3]; 3] = [[230, 40, 40], [40, 90, 240], [40, 200, 60]];
+pub const OBJECT_COLOURS: [[u8; 3]; 3] = [[230, 40, 40], [40, 90, 240], [40, 200, 60]];
 
 /// Which objects a run places.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -296,7 +296,7 @@ fn overlay(
     });
     let t_cw = t_wc.inverse();
     for a in anchors {
-        let colour = COLOURS[usize::from(a.object) % COLOURS.len()];
+        let colour = OBJECT_COLOURS[usize::from(a.object) % OBJECT_COLOURS.len()];
         let up = nalgebra::Vector3::from(a.up_w);
         // Any direction across the plane, then the third axis.
         let across = if up.x.abs() < 0.9 { nalgebra::Vector3::x() } else { nalgebra::Vector3::y() };
