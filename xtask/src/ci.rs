@@ -163,8 +163,11 @@ fn demo_planes(dir: &Path) -> Result<()> {
     let (found, missed) = (a["found"].as_u64(), a["missed"].as_u64());
     let (deg, off) = (a["normal_error_deg_max"].as_f64(), a["offset_error_m_max"].as_f64());
     eprintln!(
-        "demo planes: {found:?} room faces found, {missed:?} missed; worst normal {deg:?} deg, \
-         offset {off:?} m"
+        "demo planes: {} room faces found, {} missed; worst normal {} deg, offset {} m",
+        found.map_or_else(|| "missing".to_owned(), |v| v.to_string()),
+        missed.map_or_else(|| "missing".to_owned(), |v| v.to_string()),
+        shown(deg),
+        shown(off)
     );
     match (found, missed, deg, off) {
         (Some(f), Some(0), Some(d), Some(o))
@@ -177,6 +180,11 @@ fn demo_planes(dir: &Path) -> Result<()> {
              normal within {DEMO_PLANE_NORMAL_DEG} deg, offset within {DEMO_PLANE_OFFSET_M} m)"
         ),
     }
+}
+
+/// A figure read from a report, as a line says it (`missing` when the report has none).
+fn shown(figure: Option<f64>) -> String {
+    figure.map_or_else(|| "missing".to_owned(), |v| format!("{v:.4}"))
 }
 
 /// The `report.json` a replay or a demo wrote into `dir`.
@@ -203,8 +211,11 @@ fn demo_objects(dir: &Path) -> Result<()> {
     let (median, p95) = (ar["error_px"]["median"].as_f64(), ar["error_px"]["p95"].as_f64());
     let jitter = ar["jitter_px"]["median"].as_f64();
     eprintln!(
-        "demo AR: {objects} objects, {counted} drawings counted; error median {median:?} px, p95 \
-         {p95:?} px; jitter median {jitter:?} px"
+        "demo AR: {objects} objects, {counted} drawings counted; error median {} px, p95 {} px; \
+         jitter median {} px",
+        shown(median),
+        shown(p95),
+        shown(jitter)
     );
     match (median, p95, jitter) {
         (Some(m), Some(p), Some(j))
@@ -415,7 +426,11 @@ fn seven_scenes_objects(dir: &Path) -> Result<()> {
     let ar = &report["ar"];
     let objects = ar["objects"].as_u64().unwrap_or(0);
     let (median, p95) = (ar["error_px"]["median"].as_f64(), ar["error_px"]["p95"].as_f64());
-    eprintln!("7-Scenes AR: {objects} objects; error median {median:?} px, p95 {p95:?} px");
+    eprintln!(
+        "7-Scenes AR: {objects} objects; error median {} px, p95 {} px",
+        shown(median),
+        shown(p95)
+    );
     match (median, p95) {
         (Some(m), Some(p))
             if objects == 2 && m <= SEVEN_SCENES_AR_MEDIAN_PX && p <= SEVEN_SCENES_AR_P95_PX =>
