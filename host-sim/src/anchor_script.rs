@@ -29,7 +29,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ferroslam_core::ar::AnchorCommand;
+use ferroslam_core::ar::{Anchor, AnchorCommand};
 use serde::Deserialize;
 
 /// A script step: at frame `frame` (0-based, as played), `command`.
@@ -144,7 +144,6 @@ impl AnchorScript {
                 line,
                 problem: problem.to_owned(),
             };
-            let scale_ok = |s: f32| s.is_finite() && s > 0.0;
             let command = match (step.action, step.pixel, step.scale) {
                 (Action::Place, None, _) => return Err(problem("a place needs `pixel = [u, v]`")),
                 (Action::Place, Some(p), scale) => {
@@ -152,7 +151,7 @@ impl AnchorScript {
                         return Err(problem("`pixel` must be two finite, non-negative numbers"));
                     }
                     let scale = scale.unwrap_or(1.0);
-                    if !scale_ok(scale) {
+                    if !Anchor::is_valid_scale(scale) {
                         return Err(problem("`scale` must be finite and positive"));
                     }
                     let pixel = p.map(|c| (c + 0.5) * factor - 0.5);
@@ -162,7 +161,7 @@ impl AnchorScript {
                     return Err(problem("a scale takes no `pixel` (place the object again)"));
                 }
                 (Action::Scale, None, None) => return Err(problem("a scale needs `scale`")),
-                (Action::Scale, None, Some(scale)) if !scale_ok(scale) => {
+                (Action::Scale, None, Some(scale)) if !Anchor::is_valid_scale(scale) => {
                     return Err(problem("`scale` must be finite and positive"));
                 }
                 (Action::Scale, None, Some(scale)) => {

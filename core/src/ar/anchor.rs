@@ -56,6 +56,11 @@ impl Anchor {
     /// (a reading across an edge is no surface).
     pub const MAX_RELATIVE_STEP: f32 = super::PlaneParams::DEFAULT.max_relative_step;
 
+    /// Whether `scale` is one an anchor can have: finite and positive.
+    pub fn is_valid_scale(scale: f32) -> bool {
+        scale.is_finite() && scale > 0.0
+    }
+
     /// Places `object` at `scale` where the ray of pixel `(u, v)` (the frame's pixel
     /// coordinates, centres at integers) meets the plane under it: of `planes` (the frame's, in
     /// its camera's frame, as `PlaneDetector::detect` gives them), the nearest to the point the
@@ -75,7 +80,7 @@ impl Anchor {
         t_wc: &Pose,
         planes: &[Plane],
     ) -> Result<Self, AnchorError> {
-        if !(scale.is_finite() && scale > 0.0) {
+        if !Self::is_valid_scale(scale) {
             return Err(AnchorError::InvalidScale);
         }
         if !cam.in_image(&nalgebra::Point2::new(u, v), 0.0) {

@@ -141,7 +141,7 @@ impl Anchors {
     /// # Errors
     /// [`AnchorError::InvalidScale`], [`AnchorError::UnknownObject`]: nothing changed.
     pub fn scale(&mut self, object: u16, scale: f32) -> Result<Anchor, AnchorError> {
-        if !(scale.is_finite() && scale > 0.0) {
+        if !Anchor::is_valid_scale(scale) {
             return Err(AnchorError::InvalidScale);
         }
         let slot = self.items.iter_mut().find(|a| a.anchor.object == object);

@@ -106,18 +106,33 @@ where
     A::from_arg_matches(&command.try_get_matches_from(argv)?)
 }
 
-/// The AR plan of `--ar` and `--anchors FILE` (the script wins: it replaces the paper's
-/// objects), its pixels brought `downsample_levels` halvings down to the processing resolution.
-///
-/// # Errors
-/// The script cannot be read or is invalid.
-pub(super) fn ar_plan(
-    paper: bool,
-    script: Option<&std::path::Path>,
-    downsample_levels: u8,
-) -> anyhow::Result<Option<ArPlan>> {
-    Ok(match script {
-        Some(path) => Some(ArPlan::Script(AnchorScript::load(path, downsample_levels)?)),
-        None => paper.then_some(ArPlan::Paper),
-    })
+/// The virtual objects a SLAM run places (`demo` and `replay`).
+#[derive(Debug, Args)]
+pub struct ArArgs {
+    /// Place the paper's two objects on the two largest planes of the first tracked frame that
+    /// shows two, and measure where each later frame draws them against where they belong: the
+    /// room's point under each (demo), or the placing frame's depth seen from its true pose
+    /// (a recording with ground truth) (report.json `ar`: pixel error and jitter). SLAM mode.
+    #[arg(long)]
+    pub ar: bool,
+    /// Place, scale and remove virtual objects as this TOML script says instead of the paper's
+    /// two (`[[step]]` tables: `frame`, `action` = "place" | "scale" | "remove", `object`,
+    /// `pixel = [u, v]` in the recording's (sensor's) pixels, `scale`); measured as `--ar` is.
+    /// SLAM mode.
+    #[arg(long, value_name = "FILE")]
+    pub anchors: Option<std::path::PathBuf>,
+}
+
+impl ArArgs {
+    /// The AR plan (the script wins: it replaces the paper's objects), its pixels brought
+    /// `downsample_levels` halvings down to the processing resolution.
+    ///
+    /// # Errors
+    /// The script cannot be read or is invalid.
+    pub fn plan(&self, downsample_levels: u8) -> anyhow::Result<Option<ArPlan>> {
+        Ok(match &self.anchors {
+            Some(path) => Some(ArPlan::Script(AnchorScript::load(path, downsample_levels)?)),
+            None => self.ar.then_some(ArPlan::Paper),
+        })
+    }
 }

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use clap::Args;
 
-use super::args::{ModeArg, ProfileArg, SlamArgs, ar_plan, depth_level_parser, parse_args};
+use super::args::{ArArgs, ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
 use crate::demo::{DemoOptions, demo, write_dataset};
 use crate::report::{RunOutputs, summary};
 use crate::synth::{SynthError, SynthOptions};
@@ -73,16 +73,9 @@ pub struct DemoArgs {
     /// then run on it like on any recording.
     #[arg(long, value_name = "DIR")]
     pub write_dataset: Option<PathBuf>,
-    /// Place the paper's two objects on the two largest planes of the first tracked frame that
-    /// shows two, and measure where each later frame draws them against where the room says
-    /// they are (report.json `ar`: pixel error and jitter). SLAM mode.
-    #[arg(long)]
-    pub ar: bool,
-    /// Place, scale and remove virtual objects as this TOML script says instead of the paper's
-    /// two (`[[step]]` tables: `frame`, `action` = "place" | "scale" | "remove", `object`,
-    /// `pixel = [u, v]` in the sensor's pixels, `scale`); measured as `--ar` is. SLAM mode.
-    #[arg(long, value_name = "FILE")]
-    pub anchors: Option<PathBuf>,
+    /// The virtual objects it places (SLAM mode).
+    #[command(flatten)]
+    pub ar: ArArgs,
     /// Also write the run's results as an MCAP file of Foxglove messages (JSON) that Foxglove
     /// and other MCAP tools open: camera poses and /tf, the trajectory, the map's points,
     /// keyframes, planes, AR objects, events, the aligned ground truth (odometry and SLAM
@@ -164,7 +157,7 @@ impl DemoArgs {
             profile,
             skip_frames: self.skip_frames,
             depth_level: self.depth_level,
-            ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
+            ar: self.ar.plan(profile.downsample_levels)?,
             mcap: self.mcap.clone(),
             ..DemoOptions::new(self.mode.track_mode(&self.slam))
         })

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{ModeArg, ProfileArg, SlamArgs, ar_plan, depth_level_parser, parse_args};
+use super::args::{ArArgs, ModeArg, ProfileArg, SlamArgs, depth_level_parser, parse_args};
 use crate::dataset::mcap::McapTopics;
 use crate::dataset::selection::FrameSelection;
 use crate::dataset::{CalibrationOrigin, CalibrationSource, DatasetOptions};
@@ -90,16 +90,9 @@ pub struct ReplayArgs {
     /// out with a warning, and report.json counts and lists them.
     #[arg(long)]
     pub strict: bool,
-    /// Place the paper's two objects on the two largest planes of the first tracked frame that
-    /// shows two; with ground truth, measure where each later frame draws them against where the
-    /// placing frame's depth and true pose put them (report.json `ar`). SLAM mode.
-    #[arg(long)]
-    pub ar: bool,
-    /// Place, scale and remove virtual objects as this TOML script says instead of the paper's
-    /// two (`[[step]]` tables: `frame`, `action` = "place" | "scale" | "remove", `object`,
-    /// `pixel = [u, v]` in the recording's pixels, `scale`); measured as `--ar` is. SLAM mode.
-    #[arg(long, value_name = "FILE")]
-    pub anchors: Option<PathBuf>,
+    /// The virtual objects it places (SLAM mode).
+    #[command(flatten)]
+    pub ar: ArArgs,
     /// Also write the run's results as an MCAP file of Foxglove messages (JSON) that Foxglove
     /// and other MCAP tools open: camera poses and /tf, the trajectory, the map's points,
     /// keyframes, planes, AR objects, events, the aligned ground truth (odometry and SLAM
@@ -151,7 +144,7 @@ impl ReplayArgs {
                 localize: self.localize,
             },
             strict: self.strict,
-            ar: ar_plan(self.ar, self.anchors.as_deref(), profile.downsample_levels)?,
+            ar: self.ar.plan(profile.downsample_levels)?,
             mcap: self.mcap.clone(),
             ..ReplayOptions::new(self.mode.track_mode(&self.slam))
         })

@@ -96,10 +96,18 @@ impl ArRecorder {
         if let Some(correction) = &f.loop_correction {
             self.anchors.correct(correction, in_map);
         }
-        let commands = self.commands(f, frame, cam);
+        // The frame's planes, detected once when the plan has something to do in it.
+        let wanted = match &self.plan {
+            ArPlan::Script(script) => {
+                script.steps.get(self.applied).is_some_and(|s| s.frame <= f.index)
+            }
+            ArPlan::Paper => self.run.anchors.is_empty() && f.tracked,
+        };
+        let mut planes = FramePlanes::new();
+        let detected =
+            wanted && self.detector.detect(&frame.depth, cam, &self.params, &mut planes).is_ok();
+        let commands = self.commands(f, detected.then_some(&planes), cam);
         if !commands.is_empty() {
-            let mut planes = FramePlanes::new();
-            let detected = self.detector.detect(&frame.depth, cam, &self.params, &mut planes);
             let placing = PlacingFrame {
                 depth: &frame.depth,
                 cam,
@@ -107,7 +115,7 @@ impl ArRecorder {
                 planes: &planes,
                 reference: f.reference,
             };
-            let usable = (f.tracked && detected.is_ok()).then_some(&placing);
+            let usable = (f.tracked && detected).then_some(&placing);
             // Tried on a copy: the paper's objects are placed together or not at all.
             let mut anchors = self.anchors.clone();
             let results: Vec<_> = commands.iter().map(|(c, _)| anchors.apply(c, usable)).collect();
@@ -135,11 +143,11 @@ impl ArRecorder {
     }
 
     /// The commands of frame `f`, with their script lines (the paper's plan: the two objects on
-    /// the two largest planes, once a tracked frame shows two).
+    /// the two largest of the frame's `planes`, once a tracked frame shows two).
     fn commands(
         &mut self,
         f: &ArFrame,
-        frame: &RgbdFrame<'_>,
+        planes: Option<&FramePlanes>,
         cam: &PinholeCamera,
     ) -> Vec<(AnchorCommand, Option<usize>)> {
         match &self.plan {
@@ -151,14 +159,11 @@ impl ArRecorder {
             }
             ArPlan::Paper if !self.run.anchors.is_empty() || !f.tracked => Vec::new(),
             ArPlan::Paper => {
-                let mut planes = FramePlanes::new();
-                if self.detector.detect(&frame.depth, cam, &self.params, &mut planes).is_err()
-                    || planes.len() < usize::from(OBJECTS)
-                {
+                let Some(planes) = planes.filter(|p| p.len() >= usize::from(OBJECTS)) else {
                     return Vec::new();
-                }
+                };
                 (0..OBJECTS)
-                    .zip(&planes)
+                    .zip(planes)
                     .filter_map(|(object, plane)| {
                         let uv = cam.project(&Point3::from(plane.centroid))?;
                         Some((

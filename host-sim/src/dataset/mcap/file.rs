@@ -173,7 +173,6 @@ impl McapFile {
             return Err(malformed(path, "it does not start with the MCAP magic").into());
         }
         check_chunk_sizes(&bytes).map_err(|e| malformed(path, e))?;
-        check_record_lengths(&bytes).map_err(|e| malformed(path, e))?;
         let summary = Summary::read(&bytes).map_err(|e| malformed(path, e))?;
         let oversized = summary
             .as_ref()
@@ -240,6 +239,9 @@ impl McapFile {
             }
             self.indexed = true;
         } else {
+            // Read with the crate's record length limit first (the indexed path checks its
+            // chunks in `fully_indexed`).
+            check_record_lengths(&self.bytes).map_err(|e| malformed(&self.path, e))?;
             let stream = MessageStream::new(&self.bytes).map_err(|e| malformed(&self.path, e))?;
             for message in stream {
                 let Message { channel, data, .. } =
