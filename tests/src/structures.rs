@@ -122,7 +122,8 @@ pub fn core_structures() -> Vec<Structure> {
             "persist::FlashStore",
             format!(
                 "the board's durable store in RAM: its table of {TABLE_SLOTS} slots' units (2 B \
-                 each) and two bitmaps of {MAX_RECORD_UNITS} units; the records are in flash"
+                 each) and three bitmaps of {MAX_RECORD_UNITS} units (the third for flash with \
+                 large sectors); the records are in flash"
             ),
         ),
         row::<BoardMap>(

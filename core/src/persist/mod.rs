@@ -9,7 +9,9 @@
 //! flipped is refused whole, with an error that names what is wrong ([`MapFileError`]).
 //!
 //! On a board the same records live in a NOR flash region ([`FlashStore`]): written as the map
-//! grows, made the map a boot finds by a commit, safe against a power cut at any write.
+//! grows, made the map a boot finds by a commit, safe against a power cut at any write, on flash
+//! that erases a record at a time (the QEMU board's region) or large sectors (the reference
+//! board's 128 KiB).
 
 use core::fmt;
 
@@ -22,8 +24,8 @@ pub use cut_flash::{COUNTED_UNITS, CutError, CutFlash};
 pub use flip_flash::FlipFlash;
 
 pub use flash::{
-    FlashStore, FlashStoreError, MAX_RECORD_UNITS, RELOCATE_EVERY, SPARE_UNITS, TABLE_SLOTS,
-    TABLE_UNITS, flash_bytes_for,
+    FlashStore, FlashStoreError, MAX_RECORD_UNITS, MAX_SECTOR_UNITS, RELOCATE_EVERY, SPARE_UNITS,
+    TABLE_SLOTS, TABLE_UNITS, flash_bytes_for, sector_capacity,
 };
 pub use slice_flash::{SECTOR_BYTES, SliceFlash, SliceFlashError};
 

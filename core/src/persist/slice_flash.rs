@@ -4,7 +4,10 @@
 //!
 //! NOR semantics, faithfully: erasing sets a sector's bytes to `0xFF`; programming can only clear
 //! bits (a byte becomes `old & new`), so a write over an unerased slot corrupts it as real flash
-//! would, and the store's checksum catches it.
+//! would, and the store's checksum catches it. The geometry is a parameter: the default is the
+//! QEMU board's (1 KiB sectors, 4-byte words); `SliceFlash<'_, { 128 * 1024 }, 32>` stands for
+//! the STM32H743's internal flash, whose words carry error-correcting codes and so take one
+//! program each between erases (words of more than 4 bytes are refused a second program here).
 
 use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
@@ -13,9 +16,10 @@ use embedded_storage::nor_flash::{
 /// Sector size, bytes: one long-term store record.
 pub const SECTOR_BYTES: usize = crate::config::capacity::PLACE_RECORD_BYTES;
 
-/// A region of bytes standing for NOR flash (see the module documentation).
+/// A region of bytes standing for NOR flash of `SECTOR`-byte erase sectors and `WORD`-byte
+/// program words (see the module documentation).
 #[derive(Debug)]
-pub struct SliceFlash<'a> {
+pub struct SliceFlash<'a, const SECTOR: usize = SECTOR_BYTES, const WORD: usize = 4> {
     bytes: &'a mut [u8],
 }
 
@@ -23,15 +27,23 @@ impl<'a> SliceFlash<'a> {
     /// The flash over `bytes` (its length a multiple of [`SECTOR_BYTES`]; a remainder is not
     /// used). Its content is taken as is: the store erases a slot before writing it.
     pub fn new(bytes: &'a mut [u8]) -> Self {
-        let usable = bytes.len() - bytes.len() % SECTOR_BYTES;
-        let (bytes, _) = bytes.split_at_mut(usable);
-        Self { bytes }
+        Self::with_geometry(bytes)
     }
 
     /// A region of no bytes (`const`, for a place memory in a `static` that is attached to its
     /// region at run time).
     pub const fn empty() -> SliceFlash<'static> {
         SliceFlash { bytes: &mut [] }
+    }
+}
+
+impl<'a, const SECTOR: usize, const WORD: usize> SliceFlash<'a, SECTOR, WORD> {
+    /// The flash over `bytes`, sectors of `SECTOR` bytes and words of `WORD` (a remainder past
+    /// the last whole sector is not used). Its content is taken as is.
+    pub fn with_geometry(bytes: &'a mut [u8]) -> Self {
+        let usable = bytes.len() - bytes.len() % SECTOR;
+        let (bytes, _) = bytes.split_at_mut(usable);
+        Self { bytes }
     }
 
     /// The region's bytes, as written (the host reads them back to compare).
@@ -54,6 +66,9 @@ pub enum SliceFlashError {
     OutOfBounds,
     /// An erase not on sector boundaries, or a write not on word boundaries.
     NotAligned,
+    /// A second program of a word of more than 4 bytes since its erase (error-correcting
+    /// words refuse it).
+    Programmed,
 }
 
 impl NorFlashError for SliceFlashError {
@@ -61,15 +76,16 @@ impl NorFlashError for SliceFlashError {
         match self {
             Self::OutOfBounds => NorFlashErrorKind::OutOfBounds,
             Self::NotAligned => NorFlashErrorKind::NotAligned,
+            Self::Programmed => NorFlashErrorKind::Other,
         }
     }
 }
 
-impl ErrorType for SliceFlash<'_> {
+impl<const SECTOR: usize, const WORD: usize> ErrorType for SliceFlash<'_, SECTOR, WORD> {
     type Error = SliceFlashError;
 }
 
-impl ReadNorFlash for SliceFlash<'_> {
+impl<const SECTOR: usize, const WORD: usize> ReadNorFlash for SliceFlash<'_, SECTOR, WORD> {
     const READ_SIZE: usize = 1;
 
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
@@ -82,12 +98,12 @@ impl ReadNorFlash for SliceFlash<'_> {
     }
 }
 
-impl NorFlash for SliceFlash<'_> {
-    const WRITE_SIZE: usize = 4;
-    const ERASE_SIZE: usize = SECTOR_BYTES;
+impl<const SECTOR: usize, const WORD: usize> NorFlash for SliceFlash<'_, SECTOR, WORD> {
+    const WRITE_SIZE: usize = WORD;
+    const ERASE_SIZE: usize = SECTOR;
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        let aligned = |x: u32| (x as usize).is_multiple_of(SECTOR_BYTES);
+        let aligned = |x: u32| (x as usize).is_multiple_of(SECTOR);
         if !aligned(from) || !aligned(to) || to < from {
             return Err(SliceFlashError::NotAligned);
         }
@@ -101,7 +117,11 @@ impl NorFlash for SliceFlash<'_> {
         {
             return Err(SliceFlashError::NotAligned);
         }
-        for (cell, &b) in self.span(offset, bytes.len())?.iter_mut().zip(bytes) {
+        let span = self.span(offset, bytes.len())?;
+        if WORD > 4 && span.chunks(WORD).any(|w| w.iter().any(|&b| b != 0xFF)) {
+            return Err(SliceFlashError::Programmed);
+        }
+        for (cell, &b) in span.iter_mut().zip(bytes) {
             *cell &= b;
         }
         Ok(())
@@ -110,6 +130,8 @@ impl NorFlash for SliceFlash<'_> {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
 
     #[test]
@@ -126,5 +148,19 @@ mod tests {
         assert_eq!(f.erase(1, 1024), Err(SliceFlashError::NotAligned));
         assert_eq!(f.write(2, &[0; 4]), Err(SliceFlashError::NotAligned));
         assert_eq!(f.read(2 * SECTOR_BYTES as u32, &mut out), Err(SliceFlashError::OutOfBounds));
+    }
+
+    #[test]
+    fn words_with_error_correction_take_one_program_between_erases() {
+        let mut backing = std::vec![0u8; 3 * 8192];
+        let mut f = SliceFlash::<'_, 8192, 32>::with_geometry(&mut backing);
+        assert_eq!(f.capacity(), 3 * 8192);
+        f.erase(8192, 16384).unwrap();
+        f.write(8192, &[0x0F; 32]).unwrap();
+        assert_eq!(f.write(8192, &[0x0F; 32]), Err(SliceFlashError::Programmed));
+        assert_eq!(f.write(8192 + 16, &[0; 32]), Err(SliceFlashError::NotAligned));
+        assert_eq!(f.erase(1024, 8192), Err(SliceFlashError::NotAligned));
+        f.erase(8192, 16384).unwrap();
+        f.write(8192, &[0x0F; 32]).unwrap();
     }
 }

@@ -16,7 +16,7 @@ use crate::persist::{CutFlash, SliceFlash};
 use nalgebra::{Point3, Translation3, UnitQuaternion};
 
 /// A record told apart by `n` (its seq, pose, key and points).
-fn record(n: u32) -> RecordBytes {
+pub(super) fn record(n: u32) -> RecordBytes {
     let mut points = HVec::new();
     for i in 0..4u32 {
         let p = Point3::new(i as f32 * 0.1, n as f32 * 0.01, 1.0 + i as f32 * 0.05);
