@@ -23,7 +23,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::RamStore;
-use ferroslam_core::persist::{FlashStore, SliceFlash, flash_bytes_for};
+use ferroslam_core::persist::{FlashStore, SECTOR_BYTES, SliceFlash, flash_bytes_for};
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message, TickUnit};
 use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, TickClock, run_frame};
 use ferroslam_sim::dataset::{Calibration, parse_image_list};
@@ -32,6 +32,7 @@ use ferroslam_sim::serial::{TumPoseWriter, WireWriter, decode_capture};
 use image::{DynamicImage, ImageFormat};
 
 use super::frames::{FRAME_BYTES, MAX_FRAMES};
+use super::targets::{MAX_REGION_BYTES, SECTOR_MODE_SECTOR, SECTOR_MODE_WORD};
 use crate::paths::{SEVEN_SCENES, SEVEN_SCENES_CALIBRATION, root};
 
 /// A target's seed files: names and bytes.
@@ -163,12 +164,30 @@ fn map_seeds(demo: &DemoRun) -> Result<Seeds> {
 }
 
 fn flash_seeds(demo: &DemoRun) -> Result<Seeds> {
-    let mut region = vec![0xFF; flash_bytes_for(2)];
+    let [first, second] = flash_images::<SECTOR_BYTES, 4>(demo, flash_bytes_for(2))?;
+    let [sectors_first, sectors_second] =
+        flash_images::<SECTOR_MODE_SECTOR, SECTOR_MODE_WORD>(demo, MAX_REGION_BYTES)?;
+    Ok(vec![
+        ("demo-2-records-1-commit.flash".into(), first),
+        ("demo-then-1-record-2-commits.flash".into(), second),
+        ("demo-2-records-1-commit-4k-sectors.flash".into(), sectors_first),
+        ("demo-then-1-record-2-commits-4k-sectors.flash".into(), sectors_second),
+    ])
+}
+
+/// A region of `bytes` on flash of `SECTOR`-byte sectors and `WORD`-byte words after the demo's
+/// map of 2 records was loaded and committed, then after its map of 1 record was.
+fn flash_images<const SECTOR: usize, const WORD: usize>(
+    demo: &DemoRun,
+    bytes: usize,
+) -> Result<[Vec<u8>; 2]> {
+    let mut region = vec![0xFF; bytes];
     let mut images = Vec::new();
     for records in [2, 1] {
-        let store = FlashStore::mount(SliceFlash::new(&mut region))
+        let store = FlashStore::mount(SliceFlash::<SECTOR, WORD>::with_geometry(&mut region))
             .map_err(|e| anyhow!("mounting the seed region: {e:?}"))?;
-        let mut memory = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+        let mut memory =
+            PlaceMemory::new(FlashStore::unmounted(SliceFlash::with_geometry(&mut [])), 1);
         memory.attach(store);
         memory.load(&map_of(demo, records)?).map_err(|e| anyhow!("loading the map: {e}"))?;
         memory.commit().map_err(|e| anyhow!("commit: {e:?}"))?;
@@ -176,10 +195,7 @@ fn flash_seeds(demo: &DemoRun) -> Result<Seeds> {
     }
     let second = images.pop().context("two images")?;
     let first = images.pop().context("two images")?;
-    Ok(vec![
-        ("demo-2-records-1-commit.flash".into(), first),
-        ("demo-then-1-record-2-commits.flash".into(), second),
-    ])
+    Ok([first, second])
 }
 
 /// The frames of a capture's first `n` frames (pose and cost messages each).

@@ -9,7 +9,8 @@
 //! - `flash-mount`: `FlashStore::mount` over the bytes (padded with erased bytes to whole 1 KiB
 //!   sectors, at most [`MAX_REGION_BYTES`]), a place memory attached and saved; when the records
 //!   it held decode, the map less its last record is loaded into it and committed, and the next
-//!   boot of the same flash finds exactly that map.
+//!   boot of the same flash finds exactly that map. The same again on the bytes as flash of
+//!   4 KiB sectors and 32-byte words ([`SECTOR_MODE_SECTOR`]: the store's sector mode).
 //! - `wire`: `decode_capture`; its counts add up; every message it decoded encodes, and the
 //!   encoded stream decodes to the same messages (bit for bit).
 //! - `calibration`: `Calibration::from_toml_str`; an accepted calibration validates again, and
@@ -117,12 +118,30 @@ fn same_map_saved(saved: &[u8], input: &[u8]) -> Result<(), String> {
     ))
 }
 
-/// The `flash-mount` target (see the module documentation).
+/// Sector bytes of the `flash-mount` target's second geometry, which runs the store in sector
+/// mode (4 records a sector).
+pub const SECTOR_MODE_SECTOR: usize = 4096;
+/// Word bytes of that geometry, programmed once each (as the STM32H743's).
+pub const SECTOR_MODE_WORD: usize = 32;
+
+/// The `flash-mount` target (see the module documentation): the outcome of the 1 KiB-sector
+/// geometry, or of the sector mode's when only it found a committed table.
 pub fn flash_mount(input: &[u8]) -> Result<Outcome, String> {
+    let sectors = flash_mount_on::<SECTOR_MODE_SECTOR, SECTOR_MODE_WORD>(input)
+        .map_err(|e| format!("sector mode: {e}"))?;
+    let units = flash_mount_on::<SECTOR_BYTES, 4>(input)?;
+    if units.accepted > 0 || sectors.accepted == 0 {
+        return Ok(units);
+    }
+    Ok(Outcome { class: format!("sector mode: {}", sectors.class), ..sectors })
+}
+
+/// [`flash_mount`] on flash of `SECTOR`-byte sectors and `WORD`-byte words.
+fn flash_mount_on<const SECTOR: usize, const WORD: usize>(input: &[u8]) -> Result<Outcome, String> {
     let mut region = input.get(..MAX_REGION_BYTES).unwrap_or(input).to_vec();
-    region.resize(region.len().next_multiple_of(SECTOR_BYTES), 0xFF);
+    region.resize(region.len().next_multiple_of(SECTOR), 0xFF);
     let (generation, undecodable, held, first) = {
-        let mut memory = boot(&mut region)?;
+        let mut memory = boot::<SECTOR, WORD>(&mut region)?;
         let generation = memory.store().generation();
         let first = save(&mut memory).map_err(|e| format!("save after attach: {e}"))?;
         (generation, memory.stats().store_errors, memory.len(), first)
@@ -137,7 +156,7 @@ pub fn flash_mount(input: &[u8]) -> Result<Outcome, String> {
     let Ok(file) = MapFile::from_bytes(&first) else { return Ok(Outcome::accepted(class)) };
     let fewer = encode_map_file(file.records.get(..held.saturating_sub(1)).unwrap_or(&[]));
     {
-        let mut memory = boot(&mut region)?;
+        let mut memory = boot::<SECTOR, WORD>(&mut region)?;
         memory
             .load(&fewer)
             .map_err(|e| format!("a map saved from this store does not load: {e}"))?;
@@ -148,7 +167,7 @@ pub fn flash_mount(input: &[u8]) -> Result<Outcome, String> {
             return Ok(Outcome::accepted(format!("{class}, commit failed")));
         }
     }
-    let mut memory = boot(&mut region)?;
+    let mut memory = boot::<SECTOR, WORD>(&mut region)?;
     let found = save(&mut memory).map_err(|e| format!("save after the second boot: {e}"))?;
     if found != fewer {
         return Err(format!(
@@ -165,10 +184,13 @@ pub fn flash_mount(input: &[u8]) -> Result<Outcome, String> {
 
 /// The place memory a board boots with on `region`: the store mounted, a memory made before it
 /// attached to it (as the firmware does).
-fn boot(region: &mut [u8]) -> Result<PlaceMemory<FlashStore<SliceFlash<'_>>>, String> {
-    let store = FlashStore::mount(SliceFlash::new(region))
+#[allow(clippy::type_complexity)]
+fn boot<const SECTOR: usize, const WORD: usize>(
+    region: &mut [u8],
+) -> Result<PlaceMemory<FlashStore<SliceFlash<'_, SECTOR, WORD>>>, String> {
+    let store = FlashStore::mount(SliceFlash::with_geometry(region))
         .map_err(|e| format!("mount failed on a region the flash holds: {e:?}"))?;
-    let mut memory = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    let mut memory = PlaceMemory::new(FlashStore::unmounted(SliceFlash::with_geometry(&mut [])), 1);
     memory.attach(store);
     Ok(memory)
 }

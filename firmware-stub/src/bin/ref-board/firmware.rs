@@ -1,5 +1,6 @@
 //! The reference board's firmware: statics in the H7's memory regions, the camera on SPI1/I2C1,
-//! the serial link on USART1, the pipeline in between.
+//! the serial link on USART1, the pipeline in between, and the place memory in flash bank 2
+//! (the long-term store in sector mode), committed every [`COMMIT_EVERY_FRAMES`] frames.
 
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -8,7 +9,9 @@ use cortex_m as _;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::tracking::NoPlaces;
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::persist::FlashStore;
+use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message};
 use ferroslam_firmware::camera::{CameraConfig, CameraError, FifoPort, RgbdCamera};
 use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
@@ -16,6 +19,18 @@ use ferroslam_firmware::serial::SerialLink;
 use ferroslam_firmware::stream::HalfFrame;
 
 use crate::h7::{BusyDelay, CycleClock, I2cBus, Pin, SpiDev, UsartTx};
+use crate::h7_flash::Bank2Flash;
+
+/// Frames between two commits of the place memory (about 10 s at 30 frames a second): a power cut
+/// loses at most the places remembered since the last one. A commit writes one table (1 KiB) when
+/// records changed, nothing otherwise.
+const COMMIT_EVERY_FRAMES: u32 = 300;
+
+/// The place memory on flash bank 2 (1 MiB: 500 keyframes, the place memory's index).
+type BoardPlaces = PlaceMemory<FlashStore<Bank2Flash>>;
+
+/// Fault detail of a place store that cannot be mounted (`STOR`).
+const STORE_FAULT: u32 = u32::from_be_bytes(*b"STOR");
 
 /// Camera intrinsics at the processing resolution (QVGA), pixels: the module's nominal values
 /// (585 px focal length at VGA, halved), a placeholder until the module's calibration is read
@@ -67,9 +82,19 @@ fn take_statics() -> Option<(&'static mut HalfFrame, &'static mut Pipeline)> {
 
 #[entry]
 fn main() -> ! {
+    // The place memory (its RAM index is 12 KiB), in DTCM: cortex-m-rt hands it out once as a
+    // `&'static mut`, copied from its `const` image by the reset handler.
+    static mut PLACES: BoardPlaces =
+        PlaceMemory::new(FlashStore::unmounted(Bank2Flash::new()), SLAM_FRONTEND.rng_seed);
     let Some((store, pipeline)) = take_statics() else { halt() };
     let Some(core) = cortex_m::Peripherals::take() else { halt() };
     let mut link = SerialLink::new(UsartTx::usart1());
+    // The last committed map, if bank 2 holds one: the run starts in it.
+    let places = PLACES;
+    match FlashStore::mount(Bank2Flash::new()) {
+        Ok(flash) => places.attach(flash),
+        Err(_) => report_and_halt(&mut link, STORE_FAULT),
+    }
     // Gray FIFO: SPI1 with chip select PA4, frame-ready on PC0; depth FIFO: SPI1 with chip select
     // PA15, frame-ready on PC1 (the two share the bus type and so the driver's SPI type).
     let gray = FifoPort { spi: SpiDev::spi1(Pin::new(PORT_A, 4)), ready: Pin::new(PORT_C, 0) };
@@ -85,14 +110,20 @@ fn main() -> ! {
     let (fx, fy, cx, cy) = INTRINSICS_QVGA;
     let Ok(cam) = PinholeCamera::new(fx, fy, cx, cy, 320, 240) else { halt() };
     let mut clock = CycleClock::start(core.DCB, core.DWT);
+    let mut frames: u32 = 0;
     loop {
         let code = |e: &CameraError<_, _, _>| e.code();
-        // No place memory yet: the H743's flash erases 128 KiB sectors, which the long-term store
-        // cannot take record by record (its log on flash is issue 48's).
-        match run_frame(&mut camera, pipeline, &mut NoPlaces, &cam, &mut link, &mut clock, code) {
+        match run_frame(&mut camera, pipeline, places, &cam, &mut link, &mut clock, code) {
             Ok(FrameOutcome::Processed { .. } | FrameOutcome::Fault(_)) => {}
             // A camera never ends; a dead link leaves nothing to report to.
             Ok(FrameOutcome::End) | Err(_) => halt(),
+        }
+        frames = frames.wrapping_add(1);
+        if frames.is_multiple_of(COMMIT_EVERY_FRAMES) {
+            // The keyframes the map has retired become what a boot finds (those still in the
+            // active map are not written, to spare the flash). A failed commit is counted by the
+            // place memory (`PlaceStats::store_errors`); the last commit stands.
+            let _ = places.commit();
         }
     }
 }

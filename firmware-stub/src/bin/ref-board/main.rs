@@ -14,6 +14,9 @@ mod firmware;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 mod h7;
+#[cfg(target_os = "none")]
+#[allow(unsafe_code)]
+mod h7_flash;
 
 /// On the host this binary only explains itself: it is firmware.
 #[cfg(not(target_os = "none"))]
