@@ -431,10 +431,7 @@ impl<F: NorFlash> FlashStore<F> {
         if !self.live.has(unit) || self.free_units() <= (SPARE_UNITS / 2) as u32 {
             return Ok(());
         }
-        let len = usize::from(self.len);
-        let Some(slot) = self.table.iter().take(len).position(|&u| u == unit) else {
-            return Ok(());
-        };
+        let Ok(slot) = self.slot_of(unit) else { return Ok(()) };
         let Some(to) = self.free_unit() else { return Ok(()) };
         let dst = Self::unit_offset(to);
         self.flash
@@ -448,13 +445,7 @@ impl<F: NorFlash> FlashStore<F> {
     /// Copies slot `slot`'s record from unit `from` to the erased unit `to` (through a 64-byte
     /// buffer) and points the slot at it.
     fn move_record(&mut self, slot: usize, from: u16, to: u16) -> Result<(), FlashStoreError> {
-        let (src, dst) = (Self::unit_offset(from), Self::unit_offset(to));
-        self.written.set(to, Self::SECTORED);
-        let mut chunk = [0u8; 64];
-        for at in (0..PLACE_RECORD_BYTES as u32).step_by(chunk.len()) {
-            self.flash.read(src + at, &mut chunk).map_err(|e| FlashStoreError::of(&e))?;
-            self.flash.write(dst + at, &chunk).map_err(|e| FlashStoreError::of(&e))?;
-        }
+        self.copy_unit(from, to)?;
         if let Some(e) = self.table.get_mut(slot) {
             *e = to;
         }

@@ -8,7 +8,7 @@ extern crate std;
 
 use std::vec::Vec;
 
-use super::tests::record;
+use super::tests::{boot_on, record};
 use super::*;
 use crate::persist::{CutFlash, SliceFlash};
 
@@ -20,18 +20,6 @@ const SMALL_SECTOR: usize = 16384;
 const SMALL_SLOTS: usize = 36;
 /// The STM32H743's internal flash: 128 KiB sectors, 32-byte words.
 type H7<'a> = SliceFlash<'a, { 128 * 1024 }, 32>;
-
-/// What a boot on `flash` finds: each held slot's bytes, in order.
-fn boot_on<F: NorFlash>(flash: F) -> Vec<RecordBytes> {
-    let mut store = FlashStore::mount(flash).unwrap();
-    (0..store.held())
-        .map(|slot| {
-            let mut buf = [0; PLACE_RECORD_BYTES];
-            store.read(slot, &mut buf).unwrap();
-            buf
-        })
-        .collect()
-}
 
 #[test]
 fn capacity_keeps_a_spare_sector_and_a_quarter_of_each_other() {

@@ -36,7 +36,12 @@ pub(super) fn record(n: u32) -> RecordBytes {
 
 /// What a boot on `image` finds: each held slot's bytes, in order.
 fn boot(image: &mut [u8]) -> Vec<RecordBytes> {
-    let mut store = FlashStore::mount(SliceFlash::new(image)).unwrap();
+    boot_on(SliceFlash::new(image))
+}
+
+/// What a boot on `flash` finds: each held slot's bytes, in order.
+pub(super) fn boot_on<F: NorFlash>(flash: F) -> Vec<RecordBytes> {
+    let mut store = FlashStore::mount(flash).unwrap();
     (0..store.held())
         .map(|slot| {
             let mut buf = [0; PLACE_RECORD_BYTES];
