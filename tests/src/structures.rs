@@ -151,13 +151,18 @@ pub fn core_structures() -> Vec<Structure> {
         row::<ferroslam_core::ar::PlaneDetector>(
             "ar::PlaneDetector",
             format!(
-                "not on the board yet: {} x {} cells (moments and normal each), the seeds' order \
-                 and the growing's queue",
+                "on the board's stack while it runs (`system::OnlinePlanes`, once per keyframe): \
+                 {} x {} cells (moments and normal each, two bits), the seeds' order and the \
+                 growing's queue",
                 ferroslam_core::ar::PLANE_GRID.0,
                 ferroslam_core::ar::PLANE_GRID.1
             ),
         ),
-        row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end"),
+        row::<ferroslam_core::system::OnlinePlanes>(
+            "system::OnlinePlanes",
+            "the world's planes SLAM finds as it runs: a plane map of `MAX_MAP_PLANES` planes",
+        ),
+        row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end + its planes"),
         row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
         row::<HostMap>(
             "map::HostMap",

@@ -242,6 +242,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     let summary = write_cost_json(&out, &opts.dataset, &elf, &capture, &work)?;
 
     let saved = if opts.maps.save { Some(compare_saved_maps(&out)?) } else { None };
+    let planes = compare_planes(&log, &host);
     match first_difference(&fw_poses, &host) {
         None => {
             // ~0.9 MB a frame, and rewritten by every run: kept only when something differs.
@@ -252,6 +253,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
                  QEMU {:.1} s",
                 run.elapsed.as_secs_f64()
             );
+            println!("firmware-replay: {}", planes?);
             match saved {
                 Some(Ok(line)) => println!("firmware-replay: {line}"),
                 Some(Err(e)) => return Err(e),
@@ -264,6 +266,40 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
             bail!("the firmware's poses differ from the host's (first: {diff})")
         }
     }
+}
+
+/// The planes the firmware found as it ran (its log's `planes: N kept of D detections, X dropped,
+/// fingerprint F` line) against the host replay's (`planes.online` of its run): `Ok(summary)`
+/// when the same, `Err` naming both.
+fn compare_planes(log: &[String], host: &TrackingRun) -> Result<String> {
+    let line = log
+        .iter()
+        .find_map(|l| l.split("planes: ").nth(1))
+        .ok_or_else(|| anyhow!("the firmware logged no `planes:` line"))?;
+    let numbers: Vec<u64> =
+        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
+    let online = host.planes.as_ref().map(|p| &p.online).context("the host run has no planes")?;
+    let expected = [
+        online.planes as u64,
+        u64::from(online.detections),
+        u64::from(online.dropped),
+        u64::from(online.fingerprint),
+    ];
+    if numbers != expected {
+        bail!(
+            "the firmware's planes differ from the host's: firmware `{line}`, host {} kept of {} \
+             detections, {} dropped, fingerprint {}",
+            expected[0],
+            expected[1],
+            expected[2],
+            expected[3]
+        );
+    }
+    Ok(format!(
+        "planes found as it ran the same as the host's: {} kept of {} detections, fingerprint \
+         {:#010x}",
+        online.planes, online.detections, online.fingerprint
+    ))
 }
 
 /// The address of the firmware's flash region for the long-term store (`__place_store_start`

@@ -16,8 +16,9 @@
 //!   following the keyframe it was placed against through bundle adjustment and loop corrections.
 //!
 //! Why these choices and thresholds, and what they measured: docs/decisions.md, "Planes from a
-//! grid of cells on depth". Planes and anchors saved with the map, and the firmware's side, are to
-//! come (issue 49).
+//! grid of cells on depth". SLAM also finds planes as it runs, on the board as on a host
+//! ([`crate::system::OnlinePlanes`]); planes and anchors saved with the map, and anchors on the
+//! board, are to come (issue 49).
 
 mod anchor;
 mod anchors;

@@ -217,21 +217,35 @@ impl Moments {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Cell {
     moments: Moments,
-    /// The fitted normal (toward the camera); meaningful when `flat`.
+    /// The fitted normal (toward the camera); meaningful when the cell is flat.
     normal: [f32; 3],
-    /// Whether the cell is flat within the depth noise (a region may start or grow from it).
-    flat: bool,
-    /// Whether a region took it.
-    taken: bool,
 }
 
 impl Cell {
-    const EMPTY: Self =
-        Self { moments: Moments::EMPTY, normal: [0.0; 3], flat: false, taken: false };
+    const EMPTY: Self = Self { moments: Moments::EMPTY, normal: [0.0; 3] };
+}
+
+/// One bit per cell of the grid (kept apart from [`Cell`], whose two flags padded it by 4 bytes:
+/// 1.2 KB of the detector).
+#[derive(Debug, Clone, Copy)]
+struct CellBits([u32; CELLS.div_ceil(32)]);
+
+impl CellBits {
+    const NONE: Self = Self([0; CELLS.div_ceil(32)]);
+
+    fn has(&self, i: usize) -> bool {
+        self.0.get(i / 32).is_some_and(|w| w & (1 << (i % 32)) != 0)
+    }
+
+    fn set(&mut self, i: usize) {
+        if let Some(w) = self.0.get_mut(i / 32) {
+            *w |= 1 << (i % 32);
+        }
+    }
 }
 
 /// Plane detection on depth images (see the module documentation of `ar`): the grid's cells
-/// and the region growing's queue, reused from frame to frame: 19,200 bytes
+/// and the region growing's queue, reused from frame to frame: 18,080 bytes
 /// (`memory-budget.md`); place it in a `static` or a box, not on the stack.
 ///
 /// Cost per frame: 64 depth samples interpolated and back-projected per cell, two passes over
@@ -240,6 +254,10 @@ impl Cell {
 #[derive(Debug, Clone)]
 pub struct PlaneDetector {
     cells: [Cell; CELLS],
+    /// The cells flat within the depth noise (a region may start or grow from them).
+    flat: CellBits,
+    /// The cells a region took.
+    taken: CellBits,
     /// Cell indices, by ascending RMS (the region growing's seeds, flattest first), then the
     /// growing's queue.
     order: [u16; CELLS],
@@ -255,7 +273,13 @@ impl Default for PlaneDetector {
 impl PlaneDetector {
     /// An idle detector (`const`, for a `static`).
     pub const fn new() -> Self {
-        Self { cells: [Cell::EMPTY; CELLS], order: [0; CELLS], queue: [0; CELLS] }
+        Self {
+            cells: [Cell::EMPTY; CELLS],
+            flat: CellBits::NONE,
+            taken: CellBits::NONE,
+            order: [0; CELLS],
+            queue: [0; CELLS],
+        }
     }
 
     /// The planes of `depth` (seen by `cam`, the same size), largest first, into `planes`
@@ -284,8 +308,7 @@ impl PlaneDetector {
         let mut regions: Vec<(Moments, u16), MAX_FRAME_PLANES> = Vec::new();
         for k in 0..CELLS {
             let seed = usize::from(self.order[k]);
-            let Some(cell) = self.cells.get(seed) else { continue };
-            if !cell.flat || cell.taken {
+            if !self.flat.has(seed) || self.taken.has(seed) {
                 continue;
             }
             let (moments, cells) = self.grow(seed, params);
@@ -335,6 +358,7 @@ impl PlaneDetector {
         let k = params.sensor.depth_noise_coeff_per_m;
         let (zmin, zmax) = (params.sensor.depth_min_m, params.sensor.depth_max_m);
         let mut rms = [f32::INFINITY; CELLS];
+        (self.flat, self.taken) = (CellBits::NONE, CellBits::NONE);
         for (i, cell) in self.cells.iter_mut().enumerate() {
             *cell = Cell::EMPTY;
             let (x0, y0) = ((i % PLANE_GRID.0) * cw, (i / PLANE_GRID.0) * ch);
@@ -382,7 +406,9 @@ impl PlaneDetector {
             cell.moments = unweighted.weighted(1.0 / (z2 * z2));
             let z = mean[2];
             cell.normal = normal;
-            cell.flat = cell_rms <= params.flat_sigmas * k * z * z + params.flat_floor_m;
+            if cell_rms <= params.flat_sigmas * k * z * z + params.flat_floor_m {
+                self.flat.set(i);
+            }
             if let Some(r) = rms.get_mut(i) {
                 *r = cell_rms;
             }
@@ -401,8 +427,8 @@ impl PlaneDetector {
     fn grow(&mut self, seed: usize, params: &PlaneParams) -> (Moments, u16) {
         let cos_max = libm::cosf(params.max_normal_angle_rad);
         let k = params.sensor.depth_noise_coeff_per_m;
-        let Some(first) = self.cells.get_mut(seed) else { return (Moments::EMPTY, 0) };
-        first.taken = true;
+        let Some(first) = self.cells.get(seed) else { return (Moments::EMPTY, 0) };
+        self.taken.set(seed);
         let mut moments = first.moments;
         let mut plane = (first.normal, -dot(&first.normal, &first.moments.mean));
         let mut cells = 1u16;
@@ -420,8 +446,8 @@ impl PlaneDetector {
                 (row + 1 < PLANE_GRID.1).then(|| at + PLANE_GRID.0),
             ];
             for j in neighbours.into_iter().flatten() {
-                let Some(cell) = self.cells.get_mut(j) else { continue };
-                if !cell.flat || cell.taken {
+                let Some(cell) = self.cells.get(j) else { continue };
+                if !self.flat.has(j) || self.taken.has(j) {
                     continue;
                 }
                 let m = &cell.moments;
@@ -432,7 +458,7 @@ impl PlaneDetector {
                 if dot(&cell.normal, &plane.0) < cos_max || apart > reach {
                     continue;
                 }
-                cell.taken = true;
+                self.taken.set(j);
                 moments = moments.merged(m);
                 if let Some((normal, offset, _)) = moments.fit() {
                     plane = (normal, offset);

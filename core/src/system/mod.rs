@@ -21,6 +21,7 @@
 //! assert_eq!(slam.map().num_keyframes(), 0);
 //! ```
 
+mod planes;
 mod profile;
 mod telemetry;
 
@@ -32,6 +33,7 @@ use crate::tracking::{FrameResult, FrontendError, FrontendParams, NoPlaces, Plac
 
 pub use crate::backend::SolveJob;
 pub use crate::config::{DEFAULT_BACKEND_QUOTA, DEFAULT_DRAIN_STEPS, HostQvga, HostVga, Qvga, Vga};
+pub use planes::{OnlinePlanes, PLANE_FRAMES_AFTER_KEYFRAME};
 pub use profile::{Adjuster, MapAccess, ProfileTypes, Tracker};
 
 /// SLAM at the reference board's profile ([`Qvga`]: 320 x 240, the board's map).
@@ -57,6 +59,8 @@ pub struct Slam<P: ProfileTypes> {
     new_keyframe: Option<(KeyFrameId, u32)>,
     /// Whether a [`FrameJob`] closed a loop (moved the map) not yet told to the back end.
     map_moved: bool,
+    /// The world's planes found as the frames come.
+    planes: OnlinePlanes,
 }
 
 impl<P: ProfileTypes> Default for Slam<P> {
@@ -80,7 +84,14 @@ impl<P: ProfileTypes> Slam<P> {
 
     /// A system of these parts, with no keyframe waiting for the back end.
     const fn from_parts(frontend: P::Frontend, map: P::Map, backend: P::Backend) -> Self {
-        Self { frontend, map, backend, new_keyframe: None, map_moved: false }
+        Self {
+            frontend,
+            map,
+            backend,
+            new_keyframe: None,
+            map_moved: false,
+            planes: OnlinePlanes::new(),
+        }
     }
 
     /// Tracks one frame and hands a new keyframe to the back end (see
@@ -173,6 +184,7 @@ impl<P: ProfileTypes> Slam<P> {
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
+            planes: &mut self.planes,
         };
         Some((frame, solve))
     }
@@ -188,6 +200,7 @@ impl<P: ProfileTypes> Slam<P> {
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
+            planes: &mut self.planes,
         };
         Some((frame, solve))
     }
@@ -207,6 +220,11 @@ impl<P: ProfileTypes> Slam<P> {
         &self.backend
     }
 
+    /// The world's planes found so far (see [`OnlinePlanes`]).
+    pub fn planes(&self) -> &OnlinePlanes {
+        &self.planes
+    }
+
     /// The front end with the map, as a job.
     fn frame_job(&mut self) -> FrameJob<'_, P> {
         FrameJob {
@@ -214,6 +232,7 @@ impl<P: ProfileTypes> Slam<P> {
             map: &mut self.map,
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
+            planes: &mut self.planes,
         }
     }
 
@@ -237,6 +256,7 @@ pub struct FrameJob<'a, P: ProfileTypes> {
     map: &'a mut P::Map,
     new_keyframe: &'a mut Option<(KeyFrameId, u32)>,
     map_moved: &'a mut bool,
+    planes: &'a mut OnlinePlanes,
 }
 
 impl<P: ProfileTypes> FrameJob<'_, P> {
@@ -252,12 +272,28 @@ impl<P: ProfileTypes> FrameJob<'_, P> {
         cam: &PinholeCamera,
         places: &mut impl Places,
     ) -> Result<FrameResult, FrontendError> {
-        let result = self.frontend.process(frame, cam, self.map, places)?;
+        let result = track::<P>(self.frontend, frame, cam, self.map, places)?;
         let made = result.keyframe.and_then(|kf| self.map.keyframe(kf).map(|k| (kf, k.seq)));
         if made.is_some() {
             *self.new_keyframe = made;
         }
         *self.map_moved |= result.loop_closure.is_some();
+        let sensor = *self.frontend.params().sensor();
+        self.planes.after_frame(frame, cam, &sensor, &result);
         Ok(result)
     }
+}
+
+/// The front end on one frame, out of line: the planes found after it (on some frames) stack
+/// their detector where the front end's own frame was, not on top of it (the board's peak
+/// stack).
+#[inline(never)]
+fn track<P: ProfileTypes>(
+    frontend: &mut P::Frontend,
+    frame: &RgbdFrame<'_>,
+    cam: &PinholeCamera,
+    map: &mut P::Map,
+    places: &mut impl Places,
+) -> Result<FrameResult, FrontendError> {
+    frontend.process(frame, cam, map, places)
 }

@@ -55,6 +55,9 @@ pub trait Tracker<M> {
     /// The camera of the level it tracks frames seen by `cam` on, which the map's observations
     /// are in (see [`Frontend::tracking_camera`]).
     fn tracking_camera(&self, cam: &PinholeCamera) -> PinholeCamera;
+
+    /// The parameters as given (see [`Frontend::params`]).
+    fn params(&self) -> &FrontendParams;
 }
 
 /// Reading a map whatever its capacities (see [`Map`]).
@@ -125,6 +128,10 @@ impl<const W: usize, const H: usize, const C: usize, const K: usize, const L: us
 
     fn tracking_camera(&self, cam: &PinholeCamera) -> PinholeCamera {
         Self::tracking_camera(cam)
+    }
+
+    fn params(&self) -> &FrontendParams {
+        Frontend::params(self)
     }
 }
 

@@ -10,6 +10,7 @@ use ferroslam_core::ar::{
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::map::KeyFrameId;
+use ferroslam_core::system::OnlinePlanes;
 use serde::Serialize;
 
 /// Each keyframe's planes, in its camera's frame, as the run makes them.
@@ -44,8 +45,13 @@ impl KeyframePlanes {
     }
 
     /// The world's planes, each keyframe's moved by its pose in `keyframe_pose` (a keyframe
-    /// without one is left out) and merged, largest support first.
-    pub(super) fn report(&self, keyframe_pose: &HashMap<KeyFrameId, (f64, Pose)>) -> PlanesReport {
+    /// without one is left out) and merged, largest support first; `online` the ones SLAM found
+    /// as it ran.
+    pub(super) fn report(
+        &self,
+        keyframe_pose: &HashMap<KeyFrameId, (f64, Pose)>,
+        online: &OnlinePlanes,
+    ) -> PlanesReport {
         let mut map = PlaneMap::new();
         let merge = PlaneMergeParams::DEFAULT;
         let mut used = 0;
@@ -70,7 +76,13 @@ impl KeyframePlanes {
             })
             .collect();
         planes.sort_by_key(|p| std::cmp::Reverse(p.samples));
-        PlanesReport { keyframes: used, dropped: map.dropped(), planes }
+        let board = OnlinePlanesReport {
+            detections: online.detections(),
+            planes: online.map().planes().len(),
+            dropped: online.map().dropped(),
+            fingerprint: online.fingerprint(),
+        };
+        PlanesReport { keyframes: used, dropped: map.dropped(), planes, online: board }
     }
 }
 
@@ -83,6 +95,23 @@ pub struct PlanesReport {
     pub dropped: u32,
     /// The planes, most supported first.
     pub planes: Vec<PlaneReport>,
+    /// The planes SLAM found as it ran, as a board has them.
+    pub online: OnlinePlanesReport,
+}
+
+/// The planes SLAM found as it ran ([`OnlinePlanes`]): each keyframe's surroundings detected on
+/// a later cheap frame and merged at its output pose, as the firmware does.
+#[derive(Debug, Clone, Serialize)]
+pub struct OnlinePlanesReport {
+    /// Frames the detector ran on.
+    pub detections: u32,
+    /// Planes kept.
+    pub planes: usize,
+    /// Observations dropped because the plane map was full.
+    pub dropped: u32,
+    /// FNV-1a over the kept planes' bits ([`OnlinePlanes::fingerprint`]): the firmware's must be
+    /// the same.
+    pub fingerprint: u32,
 }
 
 /// One plane of the world: the points `p` with `normal . p + offset_m = 0` (metres).

@@ -5,7 +5,7 @@ use ferroslam_core::tracking::{FrameResult, FrontendState, GuideStage};
 use serde::Serialize;
 
 use super::data_path::DataPathRun;
-pub use super::planes::{PlaneReport, PlanesReport};
+pub use super::planes::{OnlinePlanesReport, PlaneReport, PlanesReport};
 use crate::trajectory::Trajectory;
 
 /// What the odometry front end made of one frame.

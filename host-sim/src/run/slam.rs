@@ -477,7 +477,7 @@ where
         initializing_frames: stats.initializing_frames as usize,
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
-        planes: Some(planes.report(&record.keyframe_pose)),
+        planes: Some(planes.report(&record.keyframe_pose, slam.planes())),
         ar: anchors.and_then(ArRecorder::finish),
         map_points: Some(map_points),
     })

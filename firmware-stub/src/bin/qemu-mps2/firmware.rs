@@ -211,6 +211,14 @@ fn run(
     let mut status = pipeline.status();
     status.stack_peak_bytes = stack::peak_bytes();
     defmt::info!("status: {}", status);
+    let planes = pipeline.slam().planes();
+    defmt::info!(
+        "planes: {} kept of {} detections, {} dropped, fingerprint {=u32}",
+        planes.map().planes().len(),
+        planes.detections(),
+        planes.map().dropped(),
+        planes.fingerprint()
+    );
     link.send(&Message::Status(status)).map_err(Failure::Link)?;
     if let Some(path) = args.save {
         save(pipeline, places, &args.cam, path)?;
