@@ -35,19 +35,19 @@
 //! reads every unit once (a blank unit is free; the valid table of the highest generation is
 //! the map). One sector is kept erased as the spare. When the other erased units run out, a
 //! sector holding nothing the live or committed map uses is erased; when there is none, the
-//! sector with the fewest live records is collected: its live records are copied into the
-//! spare, the store commits (the table into the spare too), and only then is the sector erased,
-//! so a cut at any step boots the last committed map. The sectors other than the spare are at
+//! sector with the fewest records of either map is collected: its records are copied into the
+//! spare, the committed table is written again there with their new units (the same map, the
+//! next generation), and only then is the sector erased, so a cut at any step boots the last
+//! committed map (see `FlashStore::collect`). The sectors other than the spare are at
 //! most three quarters live ([`sector_capacity`]), so a collection copies at most three quarters
 //! of a sector and frees the rest. Records that never change are not moved for wear here:
 //! erases follow the sectors that hold the most stale records.
 
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
+use heapless::Vec as HVec;
 
 use crate::config::STORE_READ_TRIES;
 use crate::config::capacity::{BOARD_STORE_FLASH_BYTES, BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES};
-use heapless::Vec as HVec;
-
 use crate::map::{Fnv1a, KeyframeStore, RecordBytes};
 
 /// Units at the start of the region that hold tables, written in turn.
@@ -490,11 +490,19 @@ impl<F: NorFlash> FlashStore<F> {
             .find(|&u| !self.written.has(u) && Some(u / su) != spare)
     }
 
-    /// Sector mode: an erased unit to write (see the module documentation): outside the spare
-    /// sector; when there is none, a written sector holding nothing of the live or committed
-    /// map is erased, or else the sector with the fewest live records is collected. Only the
-    /// commit of a collection writes into the spare, which it collects into.
+    /// Sector mode: an erased unit to write, marked written before the program (a unit a failed
+    /// program left half written is not free): outside the spare sector; when there is none, a
+    /// written sector holding nothing of the live or committed map is erased, or else a sector
+    /// is collected. Only the commit of a collection writes into the spare, which it collects
+    /// into.
     fn take_erased(&mut self) -> Result<u16, FlashStoreError> {
+        let unit = self.find_erased()?;
+        self.written.set(unit, true);
+        Ok(unit)
+    }
+
+    /// The unit [`Self::take_erased`] takes.
+    fn find_erased(&mut self) -> Result<u16, FlashStoreError> {
         // No blank sector (a cut in a collection, or a region that was not blank): one holding
         // nothing of the maps is erased first, so that a spare is there before it is needed.
         if !self.collecting && self.spare_sector().is_none() {
@@ -559,17 +567,33 @@ impl<F: NorFlash> FlashStore<F> {
         let (victim, moving) = fewest(self, &kept).ok_or(FlashStoreError::Full)?;
         // A collection must leave a unit of the spare free beyond what it writes there.
         if moving + usize::from(old_table.is_some()) < Self::SECTOR_UNITS {
-            return self.collect_keeping_commit(victim, target, old_table);
+            let before = self.committed;
+            let (moved, next) = self.copy_sector(victim, target, &kept)?;
+            if let Some(old) = old_table {
+                let first = Self::sector_units(victim).start;
+                let base = Self::sector_units(target).start;
+                let remap = |u: u16| {
+                    if !moved.has(u) {
+                        return u;
+                    }
+                    base + (first..u).filter(|&v| moved.has(v)).count() as u16
+                };
+                if let Err(e) = self.rewrite_table(old, next, remap) {
+                    self.committed = before;
+                    return Err(e);
+                }
+                self.committed.set(old, false);
+                self.committed.set(next, true);
+                self.table_at = next;
+                self.generation = self.generation.wrapping_add(1);
+            }
+            return self.erase_sector(victim);
         }
         let (victim, moving) = fewest(self, &live).ok_or(FlashStoreError::Full)?;
         if moving + 1 >= Self::SECTOR_UNITS {
             return Err(FlashStoreError::Full);
         }
-        let base = Self::sector_units(target).start;
-        let moved = Self::sector_units(victim).filter(|&u| self.live.has(u));
-        for (to, from) in (base..).zip(moved.collect::<HVec<u16, MAX_SECTOR_UNITS>>()) {
-            self.move_record(self.slot_of(from)?, from, to)?;
-        }
+        self.copy_sector(victim, target, &live)?;
         self.collecting = true;
         let committed = self.commit(usize::from(self.len));
         self.collecting = false;
@@ -577,21 +601,19 @@ impl<F: NorFlash> FlashStore<F> {
         self.erase_sector(victim)
     }
 
-    /// [`Self::collect`] of `victim` into the blank `target` that keeps the committed map:
-    /// every record of the live or committed map in `victim` is copied in order, then the
-    /// committed table (`old_table`, when there is one) is written again with their new units.
-    fn collect_keeping_commit(
+    /// Copies the units of `victim` that `keep` names, in order, to the blank `target`'s
+    /// first units: a live record moves its slot with it, a committed one its committed bit.
+    /// Returns the units moved and the first of `target` left.
+    fn copy_sector(
         &mut self,
         victim: u16,
         target: u16,
-        old_table: Option<u16>,
-    ) -> Result<(), FlashStoreError> {
-        let before = self.committed;
-        let base = Self::sector_units(target).start;
+        keep: &dyn Fn(&Self, u16) -> bool,
+    ) -> Result<(Units, u16), FlashStoreError> {
         let mut moved = Units::NONE;
-        let mut to = base;
+        let mut to = Self::sector_units(target).start;
         for from in Self::sector_units(victim) {
-            if Some(from) == old_table || !(self.live.has(from) || self.committed.has(from)) {
+            if !keep(self, from) {
                 continue;
             }
             if self.live.has(from) {
@@ -606,24 +628,7 @@ impl<F: NorFlash> FlashStore<F> {
             moved.set(from, true);
             to += 1;
         }
-        if let Some(old) = old_table {
-            let remap = |u: u16| {
-                if !moved.has(u) {
-                    return u;
-                }
-                let first = Self::sector_units(victim).start;
-                base + (first..u).filter(|&v| moved.has(v)).count() as u16
-            };
-            if let Err(e) = self.rewrite_table(old, to, remap) {
-                self.committed = before;
-                return Err(e);
-            }
-            self.committed.set(old, false);
-            self.committed.set(to, true);
-            self.table_at = to;
-            self.generation = self.generation.wrapping_add(1);
-        }
-        self.erase_sector(victim)
+        Ok((moved, to))
     }
 
     /// The live slot held in unit `unit`.
@@ -708,17 +713,18 @@ fn keep_newest<const N: usize>(found: &mut HVec<(u16, u32), N>, unit: u16, gener
     if found.push((unit, generation)).is_ok() {
         return;
     }
-    let oldest = found.iter().enumerate().min_by(|a, b| older_first(a.1.1, b.1.1)).map(|(i, _)| i);
+    let oldest = found.iter().enumerate().min_by(|a, b| serial_order(a.1.1, b.1.1)).map(|(i, _)| i);
     if let Some(i) = oldest
         && let Some(e) = found.get_mut(i)
-        && (generation.wrapping_sub(e.1) as i32) > 0
+        && serial_order(generation, e.1).is_gt()
     {
         *e = (unit, generation);
     }
 }
 
-/// Generations in serial-number order (the generation after `u32::MAX` is 0).
-fn older_first(a: u32, b: u32) -> core::cmp::Ordering {
+/// Generations in serial-number order (the generation after `u32::MAX` is 0): `Greater` when `a`
+/// is newer than `b`.
+fn serial_order(a: u32, b: u32) -> core::cmp::Ordering {
     (a.wrapping_sub(b) as i32).cmp(&0)
 }
 
@@ -726,7 +732,7 @@ fn older_first(a: u32, b: u32) -> core::cmp::Ordering {
 fn newest_of(generations: impl Iterator<Item = u32>) -> Option<usize> {
     let mut best: Option<(usize, u32)> = None;
     for (i, g) in generations.enumerate() {
-        if best.is_none_or(|(_, b)| (g.wrapping_sub(b) as i32) > 0) {
+        if best.is_none_or(|(_, b)| serial_order(g, b).is_gt()) {
             best = Some((i, g));
         }
     }
@@ -795,10 +801,7 @@ impl<F: NorFlash> KeyframeStore for FlashStore<F> {
         }
         self.writes = self.writes.wrapping_add(1);
         let unit = if Self::SECTORED {
-            let unit = self.take_erased()?;
-            // Taken before the program: a unit a failed program left half written is not free.
-            self.written.set(unit, true);
-            unit
+            self.take_erased()?
         } else {
             if self.writes.is_multiple_of(RELOCATE_EVERY) {
                 self.relocate_cold()?;
@@ -852,7 +855,6 @@ impl<F: NorFlash> KeyframeStore for FlashStore<F> {
         // Taken before the generation is: taking a unit may collect a sector, which commits.
         let (from, table_at) = if Self::SECTORED {
             let unit = self.take_erased()?;
-            self.written.set(unit, true);
             (Self::unit_offset(unit), unit)
         } else {
             let from = Self::offset(t);

@@ -54,23 +54,35 @@ fn a_blank_or_foreign_region_mounts_empty_and_a_commit_is_what_the_next_boot_fin
     }
 }
 
-/// A store of `slots` records on 4 small sectors, committed, then `rewrites` rewrites of its
-/// slots in turn with a commit every 3: old sectors are collected on the way.
-fn worn_small(slots: usize, rewrites: u32) -> Vec<u8> {
-    let mut image = std::vec![0xFF; 4 * SMALL_SECTOR];
-    let mut store = FlashStore::mount(Small::with_geometry(&mut image)).unwrap();
+/// Fills `store`'s first `slots` slots (slot `n` with `record(n)`) and commits, then rewrites
+/// slot `(i * stride) % slots` with `rewritten(slot, i)` for each `i < rewrites`, committing
+/// after every `commit_every`-th rewrite and at the end.
+fn fill_then_rewrite(
+    store: &mut FlashStore<impl NorFlash>,
+    slots: usize,
+    (rewrites, stride, commit_every): (u32, usize, u32),
+    rewritten: impl Fn(usize, u32) -> RecordBytes,
+) {
     for n in 0..slots {
         store.write(n, &record(n as u32)).unwrap();
     }
     store.commit(slots).unwrap();
     for i in 0..rewrites {
-        let slot = (i as usize * 7) % slots;
-        store.write(slot, &record(slot as u32)).unwrap();
-        if i % 3 == 2 {
+        let slot = (i as usize * stride) % slots;
+        store.write(slot, &rewritten(slot, i)).unwrap();
+        if i % commit_every == commit_every - 1 {
             store.commit(slots).unwrap();
         }
     }
     store.commit(slots).unwrap();
+}
+
+/// A store of `slots` records on 4 small sectors, committed, then `rewrites` rewrites of its
+/// slots in turn with a commit every 3: old sectors are collected on the way.
+fn worn_small(slots: usize, rewrites: u32) -> Vec<u8> {
+    let mut image = std::vec![0xFF; 4 * SMALL_SECTOR];
+    let mut store = FlashStore::mount(Small::with_geometry(&mut image)).unwrap();
+    fill_then_rewrite(&mut store, slots, (rewrites, 7, 3), |slot, _| record(slot as u32));
     image
 }
 
@@ -147,17 +159,8 @@ fn a_full_store_collects_sectors_for_ever_and_spreads_their_erases() {
     let mut image = std::vec![0xFF; 4 * SMALL_SECTOR];
     let mut flash = CutFlash::new(Small::with_geometry(&mut image), None, 3, SMALL_SECTOR);
     let mut store = FlashStore::mount(&mut flash).unwrap();
-    for n in 0..SMALL_SLOTS {
-        store.write(n, &record(n as u32)).unwrap();
-    }
-    store.commit(SMALL_SLOTS).unwrap();
     // A full store thinning: a slot rewritten per keyframe, a commit every 5.
-    for i in 0..3000u32 {
-        store.write((i as usize * 5) % SMALL_SLOTS, &record(1000 + i)).unwrap();
-        if i % 5 == 4 {
-            store.commit(SMALL_SLOTS).unwrap();
-        }
-    }
+    fill_then_rewrite(&mut store, SMALL_SLOTS, (3000, 5, 5), |_, i| record(1000 + i));
     let erases: Vec<u32> = flash.erases()[..4].to_vec();
     let total: u32 = erases.iter().sum();
     // 3,000 records and 600 tables in 16-unit sectors: at least 225 sectors' worth written,
@@ -178,16 +181,7 @@ fn the_reference_boards_bank_holds_a_full_map_and_a_second_boot_finds_it() {
     let mut store = FlashStore::mount(H7::with_geometry(&mut image)).unwrap();
     let slots = store.capacity();
     assert_eq!(slots, TABLE_SLOTS);
-    for n in 0..slots {
-        store.write(n, &record(n as u32)).unwrap();
-    }
-    store.commit(slots).unwrap();
-    for i in 0..1500u32 {
-        store.write((i as usize * 13) % slots, &record(10_000 + i)).unwrap();
-        if i % 10 == 9 {
-            store.commit(slots).unwrap();
-        }
-    }
+    fill_then_rewrite(&mut store, slots, (1500, 13, 10), |_, i| record(10_000 + i));
     let found = boot_on(H7::with_geometry(&mut image));
     assert_eq!(found.len(), slots);
     assert_eq!(found[(1499 * 13) % slots], record(11_499));

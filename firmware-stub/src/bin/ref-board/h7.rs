@@ -26,13 +26,16 @@ pub const CORE_HZ: u32 = 480_000_000;
 /// Polls of a status flag before a bus operation gives up (~1 ms at 480 MHz).
 const POLL_LIMIT: u32 = 100_000;
 
-fn read(addr: usize) -> u32 {
-    // SAFETY: only called with addresses of the peripheral registers below, where volatile
-    // 32-bit reads are valid; this placeholder owns those peripherals (see `Board::take`).
+/// A volatile 32-bit read of the peripheral register at `addr` (this module's, and the flash
+/// interface's of `h7_flash`).
+pub(crate) fn read(addr: usize) -> u32 {
+    // SAFETY: only called with addresses of the peripheral registers of this module and of
+    // `h7_flash`, where volatile 32-bit reads are valid; the firmware owns those peripherals.
     unsafe { ptr::read_volatile(addr as *const u32) }
 }
 
-fn write(addr: usize, value: u32) {
+/// A volatile 32-bit write of `value` to the peripheral register at `addr` (as [`read`]).
+pub(crate) fn write(addr: usize, value: u32) {
     // SAFETY: as in `read`.
     unsafe { ptr::write_volatile(addr as *mut u32, value) }
 }

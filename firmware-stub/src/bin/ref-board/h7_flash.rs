@@ -18,6 +18,8 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 
+use crate::h7::{read as reg_read, write as reg_write};
+
 /// Bank 2's first byte in the address map.
 const BANK2_BASE: usize = 0x0810_0000;
 /// Bank 2's size, bytes: eight sectors.
@@ -67,17 +69,6 @@ const CCR_ALL: u32 = SR_ERRORS | (1 << 16);
 const ERASE_POLLS: u32 = 600_000_000;
 /// The same for one flash word's program (about 100 us at most).
 const PROGRAM_POLLS: u32 = 100_000;
-
-fn reg_read(addr: usize) -> u32 {
-    // SAFETY: only called with the flash interface's register addresses above, where volatile
-    // 32-bit accesses are valid; `Bank2Flash::take` hands the interface out once.
-    unsafe { ptr::read_volatile(addr as *const u32) }
-}
-
-fn reg_write(addr: usize, value: u32) {
-    // SAFETY: as in `reg_read`.
-    unsafe { ptr::write_volatile(addr as *mut u32, value) }
-}
 
 /// Why an operation on bank 2 failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
