@@ -9,7 +9,9 @@
 //! - [`Plane`]: a plane's normal, offset, centroid and support; [`Plane::transformed`] moves it
 //!   into the world frame with the camera's pose.
 //! - [`PlaneMap`]: the world's planes, each keyframe's merged into the one it is the same
-//!   surface as. Built from the keyframes' final poses, it follows bundle adjustment and loops.
+//!   surface as. Built from the keyframes' final poses, it follows bundle adjustment and loops;
+//!   built as frames come, a loop's correction moves the planes of the track it corrects
+//!   ([`PlaneMap::correct`]).
 //! - [`Anchor`]: a virtual object placed by a pixel of a frame where its ray meets the plane under
 //!   it, drawn where a camera pose projects it.
 //! - [`Anchors`]: the placed objects, changed by [`AnchorCommand`]s (place, scale, remove), each

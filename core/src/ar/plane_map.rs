@@ -5,6 +5,7 @@ use heapless::Vec;
 use nalgebra::Point3;
 
 use super::planes::{Plane, dot};
+use crate::geometry::Pose;
 
 /// Planes a [`PlaneMap`] keeps.
 pub const MAX_MAP_PLANES: usize = 32;
@@ -43,6 +44,9 @@ pub struct MapPlane {
     pub plane: Plane,
     /// Observations merged into it.
     pub observations: u16,
+    /// The track its first observation came in: tracking restarts before it
+    /// ([`PlaneMap::restart_track`]). A loop's correction moves the current track's planes.
+    pub track: u16,
 }
 
 /// What a [`PlaneMap::observe`] did.
@@ -60,16 +64,22 @@ pub enum Observed {
 /// The world's planes, at most [`MAX_MAP_PLANES`] (about 1.5 KiB). When full, a new plane takes
 /// the place of the one with the fewest samples if it has more; otherwise it is dropped (and
 /// counted): the best supported surfaces are the ones anchors go on.
+///
+/// Planes seen since tracking last restarted off the map are in that track's world until a loop
+/// brings it back; [`Self::correct`] moves them with it, as the tracker moves the track's
+/// keyframes.
 #[derive(Debug, Clone, Default)]
 pub struct PlaneMap {
     planes: Vec<MapPlane, MAX_MAP_PLANES>,
     dropped: u32,
+    /// The current track: tracking restarts so far.
+    track: u16,
 }
 
 impl PlaneMap {
     /// An empty map (`const`, for a `static`).
     pub const fn new() -> Self {
-        Self { planes: Vec::new(), dropped: 0 }
+        Self { planes: Vec::new(), dropped: 0, track: 0 }
     }
 
     /// The planes kept, in the order they were added.
@@ -86,35 +96,58 @@ impl PlaneMap {
     pub fn clear(&mut self) {
         self.planes.clear();
         self.dropped = 0;
+        self.track = 0;
+    }
+
+    /// The current track (tracking restarts so far).
+    pub fn track(&self) -> u16 {
+        self.track
+    }
+
+    /// Tracking restarted off the map, in a world frame of its own: planes observed from now on
+    /// are the new track's.
+    pub fn restart_track(&mut self) {
+        self.track = self.track.wrapping_add(1);
+    }
+
+    /// A loop's correction of the current track's world (`t_new_old`: from the track's world to
+    /// the remembered one, as a loop closure gives it): moves the planes the track added, and
+    /// merges each that is then the same surface as a plane of an earlier track into it (the
+    /// surface seen again, from the restarted map, before the loop). Cost: one pass over the
+    /// planes per moved plane.
+    pub fn correct(&mut self, t_new_old: &Pose, params: &PlaneMergeParams) {
+        let track = self.track;
+        for m in self.planes.iter_mut().filter(|m| m.track == track) {
+            m.plane = m.plane.transformed(t_new_old);
+        }
+        let mut i = 0;
+        while let Some(&moved) = self.planes.get(i) {
+            let earlier = |m: &MapPlane| m.track != track;
+            let same = (moved.track == track)
+                .then(|| self.same_surface(&moved.plane, earlier, params))
+                .flatten();
+            match same.and_then(|j| self.planes.get_mut(j)) {
+                Some(kept) => {
+                    kept.plane = merged(&kept.plane, &moved.plane);
+                    kept.observations = kept.observations.saturating_add(moved.observations);
+                    self.planes.remove(i);
+                }
+                None => i += 1,
+            }
+        }
     }
 
     /// Takes `plane` (in the world frame): merged into the kept plane it is the same surface as
-    /// (the closest, by centroid distance), or kept as a new one.
+    /// (the closest, by centroid distance), or kept as a new one of the current track.
     pub fn observe(&mut self, plane: &Plane, params: &PlaneMergeParams) -> Observed {
-        let cos_max = libm::cosf(params.max_normal_angle_rad);
-        let same = self
-            .planes
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| {
-                let kept = &m.plane;
-                dot(&kept.normal, &plane.normal) >= cos_max
-                    && distance(kept, &plane.centroid).abs() <= params.max_distance_m
-                    && distance(plane, &kept.centroid).abs() <= params.max_distance_m
-            })
-            .min_by(|(_, a), (_, b)| {
-                let d = |m: &MapPlane| distance(&m.plane, &plane.centroid).abs();
-                d(a).total_cmp(&d(b))
-            })
-            .map(|(i, _)| i);
-        if let Some(i) = same {
+        if let Some(i) = self.same_surface(plane, |_| true, params) {
             if let Some(m) = self.planes.get_mut(i) {
                 m.plane = merged(&m.plane, plane);
                 m.observations = m.observations.saturating_add(1);
             }
             return Observed::Merged(i);
         }
-        let new = MapPlane { plane: *plane, observations: 1 };
+        let new = MapPlane { plane: *plane, observations: 1, track: self.track };
         if self.planes.push(new).is_ok() {
             return Observed::Added(self.planes.len() - 1);
         }
@@ -131,6 +164,35 @@ impl PlaneMap {
                 Observed::Dropped
             }
         }
+    }
+}
+
+impl PlaneMap {
+    /// The kept plane among those `candidate` accepts that `plane` is the same surface as: normals
+    /// within the angle, each centroid within the distance of the other plane; the closest by
+    /// centroid distance.
+    fn same_surface(
+        &self,
+        plane: &Plane,
+        candidate: impl Fn(&MapPlane) -> bool,
+        params: &PlaneMergeParams,
+    ) -> Option<usize> {
+        let cos_max = libm::cosf(params.max_normal_angle_rad);
+        self.planes
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| {
+                let kept = &m.plane;
+                candidate(m)
+                    && dot(&kept.normal, &plane.normal) >= cos_max
+                    && distance(kept, &plane.centroid).abs() <= params.max_distance_m
+                    && distance(plane, &kept.centroid).abs() <= params.max_distance_m
+            })
+            .min_by(|(_, a), (_, b)| {
+                let d = |m: &MapPlane| distance(&m.plane, &plane.centroid).abs();
+                d(a).total_cmp(&d(b))
+            })
+            .map(|(i, _)| i)
     }
 }
 

@@ -259,6 +259,47 @@ fn a_full_plane_map_keeps_the_best_supported_planes() {
 }
 
 #[test]
+fn a_loop_moves_the_restarted_tracks_planes_onto_the_remembered_ones() {
+    let p = PlaneMergeParams::DEFAULT;
+    let mut map = PlaneMap::new();
+    let floor = world_plane([0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 1000);
+    let wall = world_plane([1.0, 0.0, 0.0], [-2.0, 0.0, 1.0], 800);
+    assert_eq!(map.observe(&floor, &p), Observed::Added(0));
+    assert_eq!(map.observe(&wall, &p), Observed::Added(1));
+    // Tracking restarts in a world 0.5 m up and turned 10 degrees about z: the floor seen from
+    // there is a plane of its own, and so is a box top the first track never saw.
+    map.restart_track();
+    let t_old_new = Pose::from_parts(
+        nalgebra::Translation3::new(0.0, 0.0, 0.5),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 10f32.to_radians()),
+    );
+    let box_top = world_plane([0.0, 0.0, 1.0], [0.6, 0.2, 0.3], 300);
+    let restarted_floor = floor.transformed(&t_old_new.inverse());
+    assert_eq!(map.observe(&restarted_floor, &p), Observed::Added(2));
+    assert_eq!(map.observe(&box_top.transformed(&t_old_new.inverse()), &p), Observed::Added(3));
+    assert_eq!(map.planes()[2].track, 1);
+    // The loop's correction: the floor joins the remembered floor, the box top stays a plane
+    // and lands where it is; the first track's planes do not move.
+    map.correct(&t_old_new, &p);
+    let kept = map.planes();
+    assert_eq!(kept.len(), 3, "{kept:?}");
+    assert_eq!((kept[0].observations, kept[0].plane.samples, kept[0].track), (2, 2000, 0));
+    assert!(kept[0].plane.offset_m.abs() < 1e-5 && kept[0].plane.normal[2] > 0.99999);
+    assert_eq!(kept[1].plane, wall);
+    let moved = kept[2];
+    assert_eq!(moved.track, 1);
+    assert!((moved.plane.offset_m + 0.3).abs() < 1e-5, "{moved:?}");
+    let c = moved.plane.centroid;
+    assert!((c[0] - 0.6).abs() < 1e-5 && (c[1] - 0.2).abs() < 1e-5, "{moved:?}");
+    // A plane observed after the loop is still the restarted track's.
+    assert_eq!(
+        map.observe(&world_plane([0.0, 1.0, 0.0], [0.0, 3.0, 1.0], 100), &p),
+        Observed::Added(3)
+    );
+    assert_eq!(map.planes()[3].track, 1);
+}
+
+#[test]
 fn an_anchor_stands_where_the_pixel_ray_meets_the_plane_under_it() {
     let cam = cam();
     let truth = floor_and_wall();

@@ -22,8 +22,9 @@ pub const PLANE_FRAMES_AFTER_KEYFRAME: u8 = 2;
 /// planes are moved into the world by its output pose and merged into the [`PlaneMap`]. A
 /// keyframe made before such a frame came starts the wait again. Cost: one detection per
 /// keyframe at most (about 7.5-9 M Cortex-M4 instructions), on the frames that cost least;
-/// the detector's 18 KB are on the stack only then. Planes are not moved by bundle adjustment or
-/// loop corrections afterwards.
+/// the detector's 18 KB are on the stack only then. A loop's correction moves the planes found
+/// since tracking last restarted, as it moves that track's keyframes ([`PlaneMap::correct`]);
+/// bundle adjustment moves no plane (a plane stays where its frame's output pose put it).
 #[derive(Debug, Clone, Default)]
 pub struct OnlinePlanes {
     map: PlaneMap,
@@ -73,6 +74,12 @@ impl OnlinePlanes {
         sensor: &SensorModel,
         result: &FrameResult,
     ) {
+        if result.reinitialized {
+            self.map.restart_track();
+        }
+        if let Some(closure) = &result.loop_closure {
+            self.map.correct(&closure.correction, &PlaneMergeParams::DEFAULT);
+        }
         if result.keyframe.is_some() {
             self.due = Some(0);
             return;
