@@ -13,6 +13,8 @@
 //!   frame source, the pipeline and a telemetry sink ([`pipeline::run_frame`]).
 //! - [`serial`]: the serial link, a [`TelemetrySink`](ferroslam_core::frame::TelemetrySink) over
 //!   `embedded_io::Write` framing messages with postcard + CRC-32 + COBS (`ferroslam_core::wire`).
+//! - [`commands`]: the serial link's receive side, anchor commands from the host
+//!   ([`commands::LinkCommands`] over any `embedded_io` reader).
 //! - [`faulty_link`]: a fault injector on the serial link (bytes dropped, bits flipped, frames
 //!   cut short), wrapping any `embedded_io` writer or reader, for tests.
 //! - [`frame_file`]: the raw frame file (header, gray u8, depth u16 LE) that recorded frames travel
@@ -31,6 +33,7 @@ pub mod camera;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod cmsdk_uart;
+pub mod commands;
 pub mod faulty_link;
 pub mod frame_file;
 pub mod pipeline;

@@ -2,17 +2,20 @@
 //! telemetry sink together ([`run_frame`]), shared by every binary and by the host's check.
 //!
 //! [`Pipeline`] is the single place that names the core's processing: the QVGA [`QvgaSlam`]
-//! facade, its front end on each frame, then its back end for a fixed quota of work units
-//! ([`BACKEND_QUOTA`]) before the next frame: the same schedule as the host's deterministic
-//! replay, so both give the same bits.
+//! facade, its front end on each frame (and the anchor commands due in it), then its back end
+//! for a fixed quota of work units ([`BACKEND_QUOTA`]) before the next frame: the same schedule
+//! as the host's deterministic replay, so both give the same bits.
 
 use ferroslam_core::frame::{FrameSource, RgbdFrame, TelemetrySink};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, DEFAULT_DRAIN_STEPS, MapAccess, QvgaSlam};
-use ferroslam_core::tracking::{FrontendError, Places};
+use ferroslam_core::tracking::{FrameResult, FrontendError, Places};
 use ferroslam_core::wire::{
-    CostMessage, FaultCode, FaultMessage, Message, PoseMessage, StatusMessage, TickUnit,
+    AnchorMessage, CostMessage, FaultCode, FaultMessage, Message, PoseMessage, StatusMessage,
+    TickUnit,
 };
+
+use crate::commands::CommandSource;
 
 /// Back-end work units run after every frame (the host replay's default quota).
 pub const BACKEND_QUOTA: u32 = DEFAULT_BACKEND_QUOTA;
@@ -37,42 +40,66 @@ impl Pipeline {
         Self { slam: QvgaSlam::new(), next_index: 0, faults: 0 }
     }
 
-    /// Processes one frame (it takes the next frame index, even when rejected) with `places` as
-    /// the place memory (`ferroslam_core::loops::PlaceMemory` over the board's flash store, or
-    /// `NoPlaces`), then runs the back end for [`BACKEND_QUOTA`] units, and returns the frame's
-    /// pose message.
+    /// The front end on one frame (it takes the next frame index, even when rejected) with
+    /// `places` as the place memory (`ferroslam_core::loops::PlaceMemory` over the board's flash
+    /// store, or `NoPlaces`), then the anchor commands due in it (from `commands`, each through
+    /// `QvgaSlam::command`: on the world's planes found so far); each command not applied is a
+    /// fault sent to `sink`. Only [`run_frame`] calls it, then [`Self::step_backend`], so the
+    /// back-end step can never be skipped or doubled (the host replay's schedule, hence its bits,
+    /// depend on it).
+    ///
+    /// Returns the frame's pose message, or the front end's [`FrontendError`] for a frame it
+    /// rejects (size, timestamp).
     ///
     /// # Errors
-    /// The front end's [`FrontendError`] for a frame it rejects (size, timestamp). A back-end
-    /// error drops that back-end job and counts as a fault; the pose still goes out.
-    pub fn process(
+    /// The sink's (the link failed).
+    fn track<T: TelemetrySink>(
         &mut self,
-        frame: &RgbdFrame<'_>,
-        cam: &PinholeCamera,
+        (frame, cam): (&RgbdFrame<'_>, &PinholeCamera),
         places: &mut impl Places,
-    ) -> Result<PoseMessage, FrontendError> {
-        let pose = self.track(frame, cam, places)?;
-        self.step_backend(cam, places);
-        Ok(pose)
-    }
-
-    /// The first half of [`Pipeline::process`]: the front end on the frame. [`run_frame`] calls
-    /// the halves itself to time them apart; anything else calls `process`, so the back-end step
-    /// can never be skipped or doubled (the host replay's schedule, hence its bits, depend on it).
-    fn track(
-        &mut self,
-        frame: &RgbdFrame<'_>,
-        cam: &PinholeCamera,
-        places: &mut impl Places,
-    ) -> Result<PoseMessage, FrontendError> {
+        commands: &mut impl CommandSource,
+        sink: &mut T,
+    ) -> Result<Result<PoseMessage, FrontendError>, T::Error> {
         let index = self.next_index;
         self.next_index = self.next_index.saturating_add(1);
-        let result = self.slam.process_with(frame, cam, places)?;
-        Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result))
+        let result = match self.slam.process_with(frame, cam, places) {
+            Ok(r) => r,
+            Err(e) => return Ok(Err(e)),
+        };
+        self.apply_commands(commands, (frame, cam, &result), index, sink)?;
+        Ok(Ok(PoseMessage::from_frame_result(index, frame.timestamp_s, &result)))
     }
 
-    /// The second half of [`Pipeline::process`]: the back end for [`BACKEND_QUOTA`] units, then
-    /// the place memory's pending store write ([`Places::flush`]).
+    /// The anchor commands `commands` has due in frame `index`, which the front end just took
+    /// (`result`), each through `QvgaSlam::command`; each not applied is a fault sent to `sink`.
+    /// Out of line: its planes seen from the frame (1.3 KB) are stacked only while it runs, not
+    /// under the front end's deepest calls.
+    #[inline(never)]
+    fn apply_commands<T: TelemetrySink>(
+        &mut self,
+        commands: &mut impl CommandSource,
+        (frame, cam, result): (&RgbdFrame<'_>, &PinholeCamera, &FrameResult),
+        index: u32,
+        sink: &mut T,
+    ) -> Result<(), T::Error> {
+        while let Some(command) = commands.next_due(index) {
+            let detail = match command {
+                Ok(c) => match self.slam.command(&c.command, frame, cam, result) {
+                    Ok(_) => continue,
+                    Err(e) => e.code(),
+                },
+                Err(e) => e.code(),
+            };
+            self.note_fault();
+            let fault = FaultMessage { frame_index: index, code: FaultCode::Command, detail };
+            sink.send(&Message::Fault(fault))?;
+        }
+        Ok(())
+    }
+
+    /// After [`Self::track`]: the back end for [`BACKEND_QUOTA`] units, then the place memory's
+    /// pending store write ([`Places::flush`]). A back-end error drops that back-end job and
+    /// counts as a fault.
     fn step_backend(&mut self, cam: &PinholeCamera, places: &mut impl Places) {
         if self.slam.step_backend(cam, BACKEND_QUOTA).is_err() {
             self.note_fault();
@@ -144,43 +171,58 @@ pub trait TickClock {
     fn now(&mut self) -> u32;
 }
 
+/// The serial link's two sides, for [`run_frame`]: telemetry out, anchor commands in.
+#[derive(Debug)]
+pub struct Link<'a, T, R> {
+    /// The sending side.
+    pub tx: &'a mut T,
+    /// The receiving side.
+    pub rx: &'a mut R,
+}
+
 /// One frame through the board: read it from `source`, process it (with `places` as the place
-/// memory), send its [`PoseMessage`] and
-/// [`CostMessage`] to `sink` (or a [`FaultMessage`] when the source fails or the pipeline rejects
-/// the frame; the caller may go on with the next frame either way).
+/// memory), apply the anchor commands due in it (from `link.rx`), send its [`PoseMessage`], an
+/// [`AnchorMessage`] per placed anchor and its [`CostMessage`] to `link.tx` (or a
+/// [`FaultMessage`] when the source fails or the pipeline rejects the frame, and one per command
+/// not applied; the caller may go on with the next frame either way).
 ///
-/// The cost message times four stages with `clock`: acquiring the frame, the front end, the
-/// back-end step after it (with the place memory's store write), and sending the pose (its own
-/// cost message is not counted).
+/// The cost message times four stages with `clock`: acquiring the frame, the front end (with the
+/// commands), the back-end step after it (with the place memory's store write), and sending the
+/// pose and the anchors (the cost message itself is not counted).
 ///
 /// # Errors
-/// The sink's error (the link itself failed).
-pub fn run_frame<S, T, C>(
+/// The sending side's error (the link itself failed).
+pub fn run_frame<S, T, R, C>(
     source: &mut S,
     pipeline: &mut Pipeline,
     places: &mut impl Places,
     cam: &PinholeCamera,
-    sink: &mut T,
+    link: Link<'_, T, R>,
     clock: &mut C,
     source_fault_detail: impl Fn(&S::Error) -> u32,
 ) -> Result<FrameOutcome, T::Error>
 where
     S: FrameSource,
     T: TelemetrySink,
+    R: CommandSource,
     C: TickClock,
 {
+    let sink = link.tx;
     let frame_index = pipeline.next_index();
     let t0 = clock.now();
     let fault = match source.next_frame() {
         Ok(None) => return Ok(FrameOutcome::End),
         Ok(Some(frame)) => {
             let t1 = clock.now();
-            match pipeline.track(&frame, cam, places) {
+            match pipeline.track((&frame, cam), places, link.rx, sink)? {
                 Ok(pose) => {
                     let t2 = clock.now();
                     pipeline.step_backend(cam, places);
                     let t3 = clock.now();
                     sink.send(&Message::Pose(pose))?;
+                    for anchor in pipeline.slam.anchors().iter() {
+                        sink.send(&Message::Anchor(AnchorMessage::of(frame_index, anchor)))?;
+                    }
                     let t4 = clock.now();
                     let cost = CostMessage {
                         frame_index,
@@ -224,6 +266,8 @@ fn frontend_error_code(e: &FrontendError) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::commands::NoCommands;
+    use ferroslam_core::ar::AnchorError;
     use ferroslam_core::image::{DepthView, GrayView, ImageView};
     use ferroslam_core::tracking::NoPlaces;
     use ferroslam_core::wire::TrackingState;
@@ -289,7 +333,8 @@ mod tests {
         let (mut sink, mut clock) = (Recorder::default(), Counter(0));
         let mut places = NoPlaces;
         let mut step = || {
-            run_frame(&mut source, &mut pipeline, &mut places, &cam, &mut sink, &mut clock, |_| 5)
+            let link = Link { tx: &mut sink, rx: &mut NoCommands };
+            run_frame(&mut source, &mut pipeline, &mut places, &cam, link, &mut clock, |_| 5)
         };
 
         // A featureless wall: processed, no keyframe possible, still initializing.
@@ -319,11 +364,64 @@ mod tests {
                 Message::Cost(_) => "cost",
                 Message::Fault(_) => "fault",
                 Message::Status(_) => "status",
+                Message::Command(_) | Message::Anchor(_) => "anchors",
             })
             .collect();
         assert_eq!(kinds, ["pose", "cost", "fault", "fault", "pose", "cost"]);
         let status = pipeline.status();
         assert_eq!((status.frames, status.faults), (2, 2));
         assert_eq!(status.state_bytes as usize, core::mem::size_of::<Pipeline>());
+    }
+
+    #[test]
+    fn commands_not_applied_are_faults_of_their_frame() {
+        use crate::commands::LinkCommands;
+        use ferroslam_core::ar::AnchorCommand;
+        use ferroslam_core::wire::{CommandMessage, MAX_FRAME_ON_WIRE, encode};
+
+        let mut source = Script {
+            gray: std::vec![128; 320 * 240],
+            depth: std::vec![1000; 320 * 240],
+            times: std::vec![Some(1.0), Some(2.0)],
+            at: 0,
+        };
+        let cam = PinholeCamera::new(292.5, 292.5, 160.0, 120.0, 320, 240).unwrap();
+        let mut pipeline = Box::new(Pipeline::new());
+        let (mut sink, mut clock) = (Recorder::default(), Counter(0));
+        // Frame 1: a place (the wall is never tracked) and a scale of an object never placed.
+        let mut bytes = Vec::new();
+        let commands = [
+            AnchorCommand::Place { object: 0, pixel: [160.0, 120.0], scale: 1.0 },
+            AnchorCommand::Scale { object: 7, scale: 2.0 },
+        ];
+        for command in commands {
+            let mut buf = [0u8; MAX_FRAME_ON_WIRE];
+            let message = Message::Command(CommandMessage { frame_index: 1, command });
+            let n = encode(&message, &mut buf).unwrap();
+            bytes.extend_from_slice(&buf[..n]);
+        }
+        let mut rx = LinkCommands::new(&bytes[..]);
+        for _ in 0..2 {
+            let link = Link { tx: &mut sink, rx: &mut rx };
+            let step =
+                run_frame(&mut source, &mut pipeline, &mut NoPlaces, &cam, link, &mut clock, |_| 5);
+            assert!(matches!(step, Ok(FrameOutcome::Processed { .. })), "{step:?}");
+        }
+        let faults: Vec<(u32, FaultCode, u32)> = sink
+            .0
+            .iter()
+            .filter_map(|m| match m {
+                Message::Fault(f) => Some((f.frame_index, f.code, f.detail)),
+                _ => None,
+            })
+            .collect();
+        let (not_tracked, unknown) =
+            (AnchorError::NotTracked.code(), AnchorError::UnknownObject.code());
+        assert_eq!(
+            faults,
+            [(1, FaultCode::Command, not_tracked), (1, FaultCode::Command, unknown)]
+        );
+        assert_eq!(pipeline.status().faults, 2);
+        assert!(pipeline.slam().anchors().is_empty());
     }
 }

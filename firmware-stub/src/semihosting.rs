@@ -51,6 +51,12 @@ impl fmt::Display for SemihostingError {
 
 impl core::error::Error for SemihostingError {}
 
+impl embedded_io::Error for SemihostingError {
+    fn kind(&self) -> embedded_io::ErrorKind {
+        embedded_io::ErrorKind::Other
+    }
+}
+
 /// How a host file is opened (the `fopen` modes of the semihosting spec, binary).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum Mode {
@@ -124,6 +130,20 @@ impl HostFile {
         Ok(())
     }
 
+    /// Reads up to `buf.len()` bytes from the current position; returns how many (0 at the end
+    /// of the file).
+    ///
+    /// # Errors
+    /// [`SemihostingError::ShortRead`] when the call reports more missing bytes than asked for
+    /// (a host error).
+    pub fn read_some(&mut self, buf: &mut [u8]) -> Result<usize, SemihostingError> {
+        // SAFETY: as in `read_exact`.
+        let missing = unsafe { syscall!(READ, self.handle, buf.as_mut_ptr(), buf.len()) };
+        buf.len()
+            .checked_sub(missing)
+            .ok_or(SemihostingError::ShortRead { wanted: buf.len(), missing })
+    }
+
     /// Writes all of `bytes`.
     ///
     /// # Errors
@@ -164,4 +184,16 @@ pub fn command_line(buf: &mut [u8]) -> Result<&str, SemihostingError> {
     let [_, len] = block;
     let text = buf.get(..len).ok_or(SemihostingError::CommandLine)?;
     core::str::from_utf8(text).map_err(|_| SemihostingError::CommandLine)
+}
+
+impl embedded_io::ErrorType for HostFile {
+    type Error = SemihostingError;
+}
+
+/// A host file as a byte stream (what [`crate::commands::LinkCommands`] reads the QEMU board's
+/// received bytes from).
+impl embedded_io::Read for HostFile {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        self.read_some(buf)
+    }
 }

@@ -201,6 +201,9 @@ pub struct ArAccuracy {
     pub anchors: Vec<crate::run::PlacedAnchor>,
     /// The `--anchors` script's steps as applied, with their outcomes.
     pub events: Vec<crate::run::ArEvent>,
+    /// The script applied as the board applies it (on the world's planes SLAM found as it ran),
+    /// `None` for the paper's objects.
+    pub online: Option<crate::run::OnlineAnchorsReport>,
     /// Pixel error of every object in every frame counted (`None`: no ground truth).
     pub error_px: Option<PixelStats>,
     /// Frame-to-frame jitter: how much an object's error moved between consecutive frames,
@@ -216,6 +219,7 @@ impl ArAccuracy {
             objects: ar.anchors.len(),
             anchors: ar.anchors.clone(),
             events: ar.events.clone(),
+            online: ar.online.clone(),
             error_px: None,
             jitter_px: None,
         }

@@ -479,8 +479,16 @@ fn ar_summary(a: &crate::plane_truth::ArAccuracy) -> String {
     } else {
         format!(", {refused} of {} script steps refused (report.json ar.events)", a.events.len())
     };
+    let online = a.online.as_ref().map_or(String::new(), |o| {
+        format!(
+            ", as the board: {} steps applied, {} refused, {} anchors (report.json ar.online)",
+            o.applied,
+            o.refused.len(),
+            o.anchors.len()
+        )
+    });
     if a.objects == 0 {
-        return format!(" AR: no object placed{script};");
+        return format!(" AR: no object placed{script}{online};");
     }
-    format!(" AR: {} objects from frame {}, {error}{script};", a.objects, a.frame)
+    format!(" AR: {} objects from frame {}, {error}{script}{online};", a.objects, a.frame)
 }

@@ -3,9 +3,12 @@
 //! on the demo's 300 frames at the board's profile, every room face covering more than a tenth
 //! of a checked frame is among the world's planes, its normal within 2 degrees and its offset
 //! within 2 cm of the room's (the online poses' drift included), and the planes were looked for
-//! once per keyframe at most (on the frames the front end tracked most cheaply).
+//! once per keyframe at most (on the frames the front end tracked most cheaply). Objects placed on
+//! those planes as the board places them (`Slam::command`, the commands its serial link receives)
+//! stand where the pixel's ray meets the room, within the planes' own 2 cm (the placing frame's
+//! online pose included).
 
-use ferroslam_core::ar::MapPlane;
+use ferroslam_core::ar::{AnchorCommand, AnchorError, MapPlane};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, QvgaSlam};
 use ferroslam_sim::synth::{SynthOptions, SyntheticSequence};
@@ -17,6 +20,9 @@ const CHECKED: [usize; 11] = [30, 55, 80, 105, 130, 155, 180, 205, 230, 255, 280
 const MIN_FRACTION: f64 = 0.10;
 const MAX_NORMAL_DEG: f64 = 2.0;
 const MAX_OFFSET_M: f64 = 0.02;
+/// The frame objects are placed in, and their pixels (the floor, a wall).
+const PLACE_FRAME: usize = 150;
+const PLACE_PIXELS: [(f32, f32); 2] = [(80.0, 200.0), (160.0, 60.0)];
 
 #[test]
 fn the_planes_found_as_slam_runs_hold_the_rooms_faces() {
@@ -24,10 +30,35 @@ fn the_planes_found_as_slam_runs_hold_the_rooms_faces() {
     let (mut source, cam, truth) = demo_frames((0..300).collect());
     let mut slam: Box<QvgaSlam> = Box::default();
     let mut keyframes = 0;
+    // Where the placed objects belong: the true point under each pixel of its placing frame.
+    let mut placed = Vec::new();
+    let mut index = 0;
     while let Some(frame) = source.next_frame().unwrap() {
         slam.step_backend(&cam, DEFAULT_BACKEND_QUOTA).unwrap();
         let r = slam.process(&frame, &cam).unwrap();
         keyframes += usize::from(r.keyframe.is_some());
+        if index == PLACE_FRAME {
+            for (object, (u, v)) in PLACE_PIXELS.into_iter().enumerate() {
+                let place =
+                    AnchorCommand::Place { object: object as u16, pixel: [u, v], scale: 1.0 };
+                slam.command(&place, &frame, &cam, &r).unwrap();
+                let z = frame.depth.depth_at(u, v, 0.05).unwrap();
+                placed.push(truth[index] * cam.back_project(u, v, z));
+            }
+            let outside = AnchorCommand::Place { object: 9, pixel: [-5.0, 10.0], scale: 1.0 };
+            assert_eq!(slam.command(&outside, &frame, &cam, &r), Err(AnchorError::OutsideImage));
+            let unknown = AnchorCommand::Scale { object: 9, scale: 2.0 };
+            assert_eq!(slam.command(&unknown, &frame, &cam, &r), Err(AnchorError::UnknownObject));
+        }
+        index += 1;
+    }
+    let anchors = slam.anchors();
+    assert_eq!(anchors.len(), PLACE_PIXELS.len());
+    for (a, truth_w) in anchors.iter().zip(&placed) {
+        let error_m = (nalgebra::Point3::from(a.p_w) - truth_w).norm();
+        let off = f64::from(error_m);
+        assert!(off <= MAX_OFFSET_M, "object {} stands {:.1} mm off", a.object, off * 1e3);
+        eprintln!("object {} placed {:.1} mm from where it belongs", a.object, error_m * 1e3);
     }
     let online = slam.planes();
     let planes = online.map().planes();

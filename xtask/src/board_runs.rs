@@ -40,6 +40,7 @@ pub fn seven_scenes(frames: Option<&str>, out: PathBuf, maps: BoardMaps) -> Resu
         out,
         qemu_args: Vec::new(),
         maps,
+        anchors: None,
     };
     crate::replay::run(&root(), &opts)
 }

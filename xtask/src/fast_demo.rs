@@ -42,6 +42,7 @@ pub fn write_and_replay(root: &Path, out: &Path) -> Result<()> {
         out: out.to_path_buf(),
         qemu_args: Vec::new(),
         maps: Default::default(),
+        anchors: None,
     };
     replay::run(root, &replay)
 }

@@ -42,8 +42,9 @@ use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::persist::{FlashStore, FlipFlash, SliceFlash};
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, Message, PoseFlags, PoseMessage, TickUnit, TrackingState};
+use ferroslam_firmware::commands::NoCommands;
 use ferroslam_firmware::faulty_link::{FaultyLink, LinkFault, LinkPlan};
-use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, TickClock, run_frame};
+use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::eval::evaluate;
 use ferroslam_sim::faults::{FaultPlan, FaultySource, FrameFault};
@@ -183,7 +184,7 @@ impl<'r> Board<'r> {
             self.pipeline.as_mut(),
             self.places.as_mut(),
             cam,
-            &mut self.sink,
+            Link { tx: &mut self.sink, rx: &mut NoCommands },
             &mut self.clock,
             |_| 0,
         )

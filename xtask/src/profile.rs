@@ -67,6 +67,9 @@ pub fn run(args: &[String]) -> Result<()> {
             format!("{},out={}", plugin.display(), blocks_file.display()),
         ],
         maps: Default::default(),
+        // The budgets' run, commands included.
+        anchors: (opts.dataset == root.join(SEVEN_SCENES))
+            .then(|| root.join(crate::budgets::BOARD_ANCHORS)),
     };
     replay::run(&root, &replay)?;
     let frames = FirmwareRun::read(&out.join("cost.json"))?.frames.len();

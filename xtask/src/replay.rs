@@ -32,11 +32,15 @@ use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::persist::{FlashStore, MAP_HEADER_BYTES, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
-use ferroslam_core::wire::{Message, PoseFlags, PoseMessage, TrackingState};
+use ferroslam_core::wire::{
+    CommandMessage, FaultCode, MAX_FRAME_ON_WIRE, Message, PoseFlags, PoseMessage, TrackingState,
+    encode,
+};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
+use ferroslam_sim::anchor_script::AnchorScript;
 use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
-use ferroslam_sim::run::{self, RunOptions, TrackMode, TrackingRun};
+use ferroslam_sim::run::{self, ArPlan, RunOptions, TrackMode, TrackingRun};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
@@ -73,6 +77,10 @@ pub struct ReplayOptions {
     pub qemu_args: Vec<String>,
     /// What the run starts from and saves (`--save-map`, `--boot-from DIR`, `--localize`).
     pub maps: BoardMaps,
+    /// An anchor script (`--anchors FILE`, as `ferroslam-sim replay --anchors`): its commands
+    /// go to the board over its serial link's receive side (`commands.bin`), and the host
+    /// replay applies them as the board does; the anchors must come out the same.
+    pub anchors: Option<PathBuf>,
 }
 
 /// The saved maps of a firmware replay: the board's flash image and the host's map file.
@@ -101,6 +109,7 @@ impl ReplayOptions {
         let (mut dataset, mut calibration, mut frames) = (None, None, None);
         let (mut max_frames, mut out) = (DEFAULT_FRAMES, default_out);
         let mut maps = BoardMaps::default();
+        let mut anchors = None;
         let mut it = args.iter();
         while let Some(a) = it.next() {
             match a.as_str() {
@@ -117,6 +126,10 @@ impl ReplayOptions {
                     let v = it.next().ok_or_else(|| anyhow!("--calibration needs a value"))?;
                     calibration = Some(PathBuf::from(v));
                 }
+                "--anchors" => {
+                    let v = it.next().ok_or_else(|| anyhow!("--anchors needs a script"))?;
+                    anchors = Some(PathBuf::from(v));
+                }
                 "--save-map" => maps.save = true,
                 "--localize" => maps.localize = true,
                 "--boot-from" => {
@@ -131,7 +144,8 @@ impl ReplayOptions {
         let dataset = dataset.ok_or_else(|| {
             anyhow!(
                 "usage: firmware-replay DATASET [--calibration FILE] [--max-frames N] [--frames \
-                 A-B,...] [--out DIR] [--save-map] [--boot-from DIR [--localize]]"
+                 A-B,...] [--out DIR] [--save-map] [--boot-from DIR [--localize]] [--anchors \
+                 FILE]"
             )
         })?;
         let calibration = calibration.or_else(|| crate::paths::calibration_for(&dataset));
@@ -141,7 +155,16 @@ impl ReplayOptions {
         if maps.localize && maps.boot_from.is_none() {
             bail!("--localize needs a map to localize in (--boot-from DIR)");
         }
-        Ok(Self { dataset, calibration, max_frames, frames, out, qemu_args: Vec::new(), maps })
+        Ok(Self {
+            dataset,
+            calibration,
+            max_frames,
+            frames,
+            out,
+            qemu_args: Vec::new(),
+            maps,
+            anchors,
+        })
     }
 }
 
@@ -192,6 +215,15 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     if opts.maps.localize {
         append += " localize";
     }
+    let script = match &opts.anchors {
+        Some(path) => {
+            let script = AnchorScript::load(path, QVGA.downsample_levels)?;
+            write_commands(&script, &out.join(COMMANDS))?;
+            append += &format!(" commands={COMMANDS}");
+            Some(script)
+        }
+        None => None,
+    };
     if opts.maps.save {
         let _ = fs::remove_file(out.join(FLASH_IMAGE));
         append += &format!(" save={FLASH_IMAGE}");
@@ -225,7 +257,11 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     eprintln!("host replay of the same {frames} frames at QVGA ...");
     let mut reader = dataset.into_reader(8);
     // The firmware's settings: the board's map, quota and place memory (`TrackMode::SLAM`).
-    let options = RunOptions { maps: host_maps, ..RunOptions::new(QVGA, TrackMode::SLAM) };
+    let options = RunOptions {
+        maps: host_maps,
+        ar: script.map(ArPlan::Script),
+        ..RunOptions::new(QVGA, TrackMode::SLAM)
+    };
     let host = run::track(&mut reader, frames, &cam, &options)?;
     let fw_poses: Vec<PoseMessage> = capture.poses().copied().collect();
     write_trajectories(&out, &fw_poses, &host)?;
@@ -243,6 +279,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 
     let saved = if opts.maps.save { Some(compare_saved_maps(&out)?) } else { None };
     let planes = compare_planes(&log, &host);
+    let anchors = opts.anchors.as_ref().map(|_| compare_anchors(&log, &capture, &host));
     match first_difference(&fw_poses, &host) {
         None => {
             // ~0.9 MB a frame, and rewritten by every run: kept only when something differs.
@@ -254,6 +291,9 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
                 run.elapsed.as_secs_f64()
             );
             println!("firmware-replay: {}", planes?);
+            if let Some(anchors) = anchors {
+                println!("firmware-replay: {}", anchors?);
+            }
             match saved {
                 Some(Ok(line)) => println!("firmware-replay: {line}"),
                 Some(Err(e)) => return Err(e),
@@ -300,6 +340,97 @@ fn compare_planes(log: &[String], host: &TrackingRun) -> Result<String> {
          {:#010x}",
         online.planes, online.detections, online.fingerprint
     ))
+}
+
+/// The commands file of a replay with `--anchors`: the bytes the board's serial link receives.
+pub const COMMANDS: &str = "commands.bin";
+
+/// Writes `script`'s steps as the host sends them to the board: one wire frame of a
+/// [`CommandMessage`] per step, in order.
+fn write_commands(script: &AnchorScript, path: &Path) -> Result<()> {
+    let mut bytes = Vec::new();
+    for step in &script.steps {
+        let frame_index = u32::try_from(step.frame).context("a script frame past u32")?;
+        let message = Message::Command(CommandMessage { frame_index, command: step.command });
+        let mut buf = [0u8; MAX_FRAME_ON_WIRE];
+        let n = encode(&message, &mut buf).map_err(|e| anyhow!("encoding a command: {e:?}"))?;
+        bytes.extend_from_slice(buf.get(..n).unwrap_or_default());
+    }
+    fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
+}
+
+/// The anchors the firmware placed against the host replay's (`ar.online` of its run): the
+/// anchor messages of the last frame, bit for bit, the commands refused (its `Command` faults:
+/// frame and error code), and its log's `anchors: N placed, fingerprint F` line. `Ok(summary)`
+/// when all agree.
+fn compare_anchors(log: &[String], capture: &Capture, host: &TrackingRun) -> Result<String> {
+    let online = host
+        .ar
+        .as_ref()
+        .and_then(|a| a.online.as_ref())
+        .context("the host run applied no anchor commands")?;
+    let last = capture.poses().last().map_or(0, |p| p.frame_index);
+    let board: Vec<[u32; 8]> = capture
+        .messages
+        .iter()
+        .filter_map(|m| match m {
+            Message::Anchor(a) if a.frame_index == last => {
+                Some(anchor_bits(a.object, a.position_m, a.up, a.scale))
+            }
+            _ => None,
+        })
+        .collect();
+    let expected: Vec<[u32; 8]> =
+        online.anchors.iter().map(|a| anchor_bits(a.object, a.position_m, a.up, a.scale)).collect();
+    if board != expected {
+        bail!(
+            "the firmware's anchors after frame {last} differ from the host's: firmware \
+             {board:?}, host {expected:?} (object, then position, up and scale as f32 bits)"
+        );
+    }
+    let refused: Vec<(usize, u32)> = capture
+        .messages
+        .iter()
+        .filter_map(|m| match m {
+            Message::Fault(f) if f.code == FaultCode::Command => {
+                Some((f.frame_index as usize, f.detail))
+            }
+            _ => None,
+        })
+        .collect();
+    let host_refused: Vec<(usize, u32)> =
+        online.refused.iter().map(|r| (r.frame, r.code)).collect();
+    if refused != host_refused {
+        bail!(
+            "the firmware refused other commands than the host: firmware {refused:?}, host \
+             {host_refused:?} (frame, error code)"
+        );
+    }
+    let line = log
+        .iter()
+        .find_map(|l| l.split("anchors: ").nth(1))
+        .ok_or_else(|| anyhow!("the firmware logged no `anchors:` line"))?;
+    let numbers: Vec<u64> =
+        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
+    let logged = [online.anchors.len() as u64, u64::from(online.fingerprint)];
+    if numbers != logged {
+        bail!("the firmware logged `anchors: {line}`, the host has {logged:?}");
+    }
+    Ok(format!(
+        "anchors the same as the host's: {} commands applied, {} refused (the same frames and \
+         errors), {} anchors at the end, bit for bit, fingerprint {:#010x}",
+        online.applied,
+        online.refused.len(),
+        online.anchors.len(),
+        online.fingerprint
+    ))
+}
+
+/// An anchor's object id and float fields as bits.
+fn anchor_bits(object: u16, position: [f32; 3], up: [f32; 3], scale: f32) -> [u32; 8] {
+    let [x, y, z] = position.map(f32::to_bits);
+    let [a, b, c] = up.map(f32::to_bits);
+    [u32::from(object), x, y, z, a, b, c, scale.to_bits()]
 }
 
 /// The address of the firmware's flash region for the long-term store (`__place_store_start`
@@ -391,9 +522,13 @@ fn check_capture(capture: &Capture) -> Result<()> {
             capture.dropped.first()
         );
     }
-    if let Some(Message::Fault(f)) =
-        capture.messages.iter().find(|m| matches!(m, Message::Fault(_)))
-    {
+    // A command the board refused is a fault it reports; `compare_anchors` checks those against
+    // the host's.
+    let fault = capture.messages.iter().find_map(|m| match m {
+        Message::Fault(f) if f.code != FaultCode::Command => Some(f),
+        _ => None,
+    });
+    if let Some(f) = fault {
         bail!("the firmware reported a fault: {f:?}");
     }
     if !capture.messages.iter().any(|m| matches!(m, Message::Status(_))) {

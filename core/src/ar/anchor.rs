@@ -31,6 +31,22 @@ pub enum AnchorError {
     UnknownObject,
 }
 
+impl AnchorError {
+    /// A number naming the variant (1 up, in declaration order), for a fault message's detail.
+    pub fn code(&self) -> u32 {
+        match self {
+            Self::OutsideImage => 1,
+            Self::NoDepth => 2,
+            Self::NoPlane => 3,
+            Self::Behind => 4,
+            Self::InvalidScale => 5,
+            Self::NotTracked => 6,
+            Self::Full => 7,
+            Self::UnknownObject => 8,
+        }
+    }
+}
+
 /// A virtual object on a plane: its position, the plane's normal (its up) in the world frame, and
 /// its scale.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -5,16 +5,18 @@
 
 use heapless::Vec;
 use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
 
 use super::anchor::{Anchor, AnchorError};
 use super::planes::Plane;
 use crate::config::capacity::MAX_ANCHORS;
 use crate::geometry::{PinholeCamera, Pose};
 use crate::image::DepthView;
-use crate::map::KeyFrameId;
+use crate::map::{Fnv1a, KeyFrameId};
 
-/// What a user asks of the anchors.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// What a user asks of the anchors. On the serial link it travels as it is (postcard, in a
+/// `wire::CommandMessage`): a change here is a new wire schema.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AnchorCommand {
     /// Place `object` at `scale` where the ray of `pixel` (the frame's pixel coordinates at the
@@ -182,6 +184,18 @@ impl Anchors {
     /// The anchors, in the order their objects were first placed.
     pub fn iter(&self) -> impl Iterator<Item = &Anchor> {
         self.items.iter().map(|a| &a.anchor)
+    }
+
+    /// FNV-1a over every anchor's fields (their bits, in order): what a board and a host replay
+    /// of the same frames and commands compare.
+    pub fn fingerprint(&self) -> u32 {
+        let mut hash = Fnv1a::default();
+        for a in self.iter() {
+            hash.add(&a.object.to_le_bytes());
+            let floats = [a.p_w, a.up_w, [a.scale, 0.0, 0.0]];
+            floats.iter().flatten().for_each(|f| hash.add(&f.to_bits().to_le_bytes()));
+        }
+        hash.value()
     }
 
     /// Anchors placed.

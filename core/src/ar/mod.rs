@@ -19,8 +19,9 @@
 //!
 //! Why these choices and thresholds, and what they measured: docs/decisions.md, "Planes from a
 //! grid of cells on depth". SLAM also finds planes as it runs, on the board as on a host
-//! ([`crate::system::OnlinePlanes`]); planes and anchors saved with the map, and anchors on the
-//! board, are to come (issue 49).
+//! ([`crate::system::OnlinePlanes`]), and places anchors on them (`Slam::command`: the commands a
+//! board receives on its serial link); planes and anchors saved with the map are to come (issue
+//! 49).
 
 mod anchor;
 mod anchors;

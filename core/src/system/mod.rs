@@ -25,6 +25,7 @@ mod planes;
 mod profile;
 mod telemetry;
 
+use crate::ar::{Anchor, AnchorCommand, AnchorError, Anchors, PlacingFrame};
 use crate::backend::{BackendError, BackendParams, BackendStatus};
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
@@ -61,6 +62,8 @@ pub struct Slam<P: ProfileTypes> {
     map_moved: bool,
     /// The world's planes found as the frames come.
     planes: OnlinePlanes,
+    /// The virtual objects placed on them ([`Self::command`]).
+    anchors: Anchors,
 }
 
 impl<P: ProfileTypes> Default for Slam<P> {
@@ -91,6 +94,7 @@ impl<P: ProfileTypes> Slam<P> {
             new_keyframe: None,
             map_moved: false,
             planes: OnlinePlanes::new(),
+            anchors: Anchors::new(),
         }
     }
 
@@ -185,6 +189,7 @@ impl<P: ProfileTypes> Slam<P> {
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
             planes: &mut self.planes,
+            anchors: &mut self.anchors,
         };
         Some((frame, solve))
     }
@@ -201,6 +206,7 @@ impl<P: ProfileTypes> Slam<P> {
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
             planes: &mut self.planes,
+            anchors: &mut self.anchors,
         };
         Some((frame, solve))
     }
@@ -225,6 +231,41 @@ impl<P: ProfileTypes> Slam<P> {
         &self.planes
     }
 
+    /// The virtual objects placed ([`Self::command`]), in the world frame.
+    pub fn anchors(&self) -> &Anchors {
+        &self.anchors
+    }
+
+    /// Applies an anchor `command` in `frame`, the frame the last [`Self::process_with`] took
+    /// (`result` its result; `cam` as given to it). A place stands the object where the pixel's
+    /// ray meets the plane under it among the world's planes found so far ([`OnlinePlanes`]),
+    /// seen from the frame's output pose: no detection on this frame, so a command costs a pass
+    /// over the planes, not a detection. The anchor then follows loop corrections with the
+    /// keyframe the frame was tracked against ([`Anchors::correct`]). A frame not tracked
+    /// places nothing ([`AnchorError::NotTracked`]).
+    ///
+    /// # Errors
+    /// [`AnchorError`]: nothing changed.
+    // Not inlined: the planes seen from the frame (1.3 KB) are stacked only while it runs.
+    #[inline(never)]
+    pub fn command(
+        &mut self,
+        command: &AnchorCommand,
+        frame: &RgbdFrame<'_>,
+        cam: &PinholeCamera,
+        result: &FrameResult,
+    ) -> Result<Anchor, AnchorError> {
+        let planes = self.planes.seen_from(&result.t_wc);
+        let placing = PlacingFrame {
+            depth: &frame.depth,
+            cam,
+            t_wc: &result.t_wc,
+            planes: &planes,
+            reference: result.reference_keyframe,
+        };
+        self.anchors.apply(command, result.tracked.then_some(&placing))
+    }
+
     /// The front end with the map, as a job.
     fn frame_job(&mut self) -> FrameJob<'_, P> {
         FrameJob {
@@ -233,6 +274,7 @@ impl<P: ProfileTypes> Slam<P> {
             new_keyframe: &mut self.new_keyframe,
             map_moved: &mut self.map_moved,
             planes: &mut self.planes,
+            anchors: &mut self.anchors,
         }
     }
 
@@ -257,6 +299,7 @@ pub struct FrameJob<'a, P: ProfileTypes> {
     new_keyframe: &'a mut Option<(KeyFrameId, u32)>,
     map_moved: &'a mut bool,
     planes: &'a mut OnlinePlanes,
+    anchors: &'a mut Anchors,
 }
 
 impl<P: ProfileTypes> FrameJob<'_, P> {
@@ -278,6 +321,10 @@ impl<P: ProfileTypes> FrameJob<'_, P> {
             *self.new_keyframe = made;
         }
         *self.map_moved |= result.loop_closure.is_some();
+        if let Some(closure) = &result.loop_closure {
+            let map = &*self.map;
+            self.anchors.correct(&closure.correction, |k| map.keyframe(k).is_some());
+        }
         let sensor = *self.frontend.params().sensor();
         self.planes.after_frame(frame, cam, &sensor, &result);
         Ok(result)

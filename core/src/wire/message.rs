@@ -1,6 +1,6 @@
 //! The messages of schema version [`SCHEMA_VERSION`](super::SCHEMA_VERSION): what the firmware
-//! reports per frame (pose, cost), at the end of a run or on request (status), and when something
-//! goes wrong (fault).
+//! reports per frame (pose, cost, each placed anchor), at the end of a run or on request (status),
+//! and when something goes wrong (fault); and what the host sends it (anchor commands).
 //!
 //! Every field has a fixed meaning and unit; floats travel as their IEEE-754 bits (postcard writes
 //! `f32`/`f64` little-endian), so the host sees exactly the values the firmware computed.
@@ -8,6 +8,7 @@
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
+use crate::ar::{Anchor, AnchorCommand};
 use crate::geometry::Pose;
 
 /// One message on the wire.
@@ -22,6 +23,11 @@ pub enum Message {
     Cost(CostMessage),
     /// Something failed; the firmware goes on with the next frame when it can.
     Fault(FaultMessage),
+    /// Host to device: an anchor command, for a frame.
+    Command(CommandMessage),
+    /// Where a placed virtual object stands after a frame: one per anchor, after the frame's
+    /// pose.
+    Anchor(AnchorMessage),
 }
 
 /// The tracking state after a frame (the front end's `FrontendState`, as one byte).
@@ -191,6 +197,9 @@ pub enum FaultCode {
     Configuration,
     /// The stack reached its limit.
     StackOverflow,
+    /// An anchor command was not applied (`detail`: `ar::AnchorError::code`; 0 for a command
+    /// frame that did not decode).
+    Command,
 }
 
 /// A fault and where it happened.
@@ -203,4 +212,45 @@ pub struct FaultMessage {
     pub code: FaultCode,
     /// A code of the failing component (its error variant), 0 when it has none.
     pub detail: u32,
+}
+
+/// Host to device: apply `command` in frame `frame_index` ([`PoseMessage::frame_index`]), or in
+/// the first frame the device processes after it when that frame is past. Commands go in the
+/// order they are to apply.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CommandMessage {
+    /// The frame the command applies in.
+    pub frame_index: u32,
+    /// What to do; pixels at the device's processing resolution.
+    pub command: AnchorCommand,
+}
+
+/// A placed virtual object after a frame, in the world frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AnchorMessage {
+    /// The frame ([`PoseMessage::frame_index`]).
+    pub frame_index: u32,
+    /// The caller's object id.
+    pub object: u16,
+    /// Where it stands, metres.
+    pub position_m: [f32; 3],
+    /// Its up: the unit normal of the plane under it.
+    pub up: [f32; 3],
+    /// Its scale (1: the object's own size).
+    pub scale: f32,
+}
+
+impl AnchorMessage {
+    /// `anchor` after frame `frame_index`.
+    pub fn of(frame_index: u32, anchor: &Anchor) -> Self {
+        Self {
+            frame_index,
+            object: anchor.object,
+            position_m: anchor.p_w,
+            up: anchor.up_w,
+            scale: anchor.scale,
+        }
+    }
 }

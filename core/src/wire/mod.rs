@@ -1,5 +1,6 @@
-//! The serial wire format: a versioned message schema shared by the firmware (which sends) and the
-//! host (which decodes), with framing that survives a noisy or truncated link.
+//! The serial wire format: a versioned message schema shared by the firmware and the host, in both
+//! directions (telemetry from the device; anchor commands to it, [`CommandMessage`]), with
+//! framing that survives a noisy or truncated link.
 //!
 //! # Frame
 //!
@@ -43,8 +44,8 @@ mod tests;
 pub use codec::{EncodeError, FrameError, crc32, decode_frame, encode};
 pub use decoder::{DecoderStats, StreamDecoder};
 pub use message::{
-    CostMessage, FaultCode, FaultMessage, Message, PoseFlags, PoseMessage, StatusMessage, TickUnit,
-    TrackingState,
+    AnchorMessage, CommandMessage, CostMessage, FaultCode, FaultMessage, Message, PoseFlags,
+    PoseMessage, StatusMessage, TickUnit, TrackingState,
 };
 
 /// The schema version this crate writes and reads (the first payload byte).
@@ -55,7 +56,9 @@ pub use message::{
 /// - 3: [`StatusMessage`] counts re-initialisations and relocalizations; [`PoseFlags::RELOCALIZED`]
 ///   marks a relocalized frame.
 /// - 4: [`PoseFlags::LOOP_CLOSED`] marks a frame on which a loop closed.
-pub const SCHEMA_VERSION: u8 = 4;
+/// - 5: the link is two-way: [`CommandMessage`] (host to device, an anchor command) and
+///   [`AnchorMessage`] (a placed object after each pose); [`FaultCode::Command`].
+pub const SCHEMA_VERSION: u8 = 5;
 
 /// Bytes of the CRC at the end of a payload.
 pub const CRC_BYTES: usize = 4;

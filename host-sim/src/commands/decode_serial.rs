@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::wire::{
-    FaultCode, FaultMessage, Message, PoseFlags, StatusMessage, TrackingState,
+    AnchorMessage, FaultCode, FaultMessage, Message, PoseFlags, StatusMessage, TrackingState,
 };
 
 use crate::serial::{TumPoseWriter, decode_capture};
@@ -61,12 +61,24 @@ pub fn run(args: &DecodeSerialArgs) -> Result<()> {
     } else {
         print_table(stdout, &capture.messages).context("writing to stdout")?;
     }
+    // Each object's last anchor message: where it stood when the capture ended.
+    let mut anchors: Vec<&AnchorMessage> = Vec::new();
     for m in &capture.messages {
         match m {
             Message::Status(st) => eprintln!("status: {}", status_words(st)),
             Message::Fault(f) => eprintln!("fault: {}", fault_words(f)),
+            Message::Command(c) => {
+                eprintln!("command for frame {}: {:?}", c.frame_index, c.command)
+            }
+            Message::Anchor(a) => match anchors.iter_mut().find(|b| b.object == a.object) {
+                Some(last) => *last = a,
+                None => anchors.push(a),
+            },
             Message::Pose(_) | Message::Cost(_) => {}
         }
+    }
+    for a in anchors {
+        eprintln!("{}", anchor_words(a));
     }
     for (offset, e) in &capture.dropped {
         eprintln!("dropped frame ending at byte {offset}: {e}");
@@ -106,6 +118,18 @@ fn status_words(s: &StatusMessage) -> String {
     )
 }
 
+/// An anchor message in words: `object 0 at (0.112, -0.530, 1.204) m, up (0.01, -0.99, 0.05),
+/// scale 1 (frame 999)`.
+fn anchor_words(a: &AnchorMessage) -> String {
+    let [x, y, z] = a.position_m;
+    let [ux, uy, uz] = a.up;
+    format!(
+        "anchor: object {} at ({x:.3}, {y:.3}, {z:.3}) m, up ({ux:.2}, {uy:.2}, {uz:.2}), scale {} \
+         (frame {})",
+        a.object, a.scale, a.frame_index
+    )
+}
+
 /// A fault message in words: `frame 12: the frame source failed (detail 2)`.
 fn fault_words(f: &FaultMessage) -> String {
     let what = match f.code {
@@ -114,13 +138,14 @@ fn fault_words(f: &FaultMessage) -> String {
         FaultCode::Telemetry => "a telemetry message could not be encoded".to_owned(),
         FaultCode::Configuration => "the board's configuration is unusable".to_owned(),
         FaultCode::StackOverflow => "the stack reached its limit".to_owned(),
+        FaultCode::Command => "an anchor command was not applied".to_owned(),
         other => format!("fault {other:?}"),
     };
     format!("frame {}: {what} (detail {})", f.frame_index, f.detail)
 }
 
 /// One row per pose: index, time, state, flags, inliers, position, and the frame's instructions
-/// when a cost message follows it.
+/// when a cost message follows it (after the frame's anchor messages).
 fn print_table(mut out: impl std::io::Write, messages: &[Message]) -> std::io::Result<()> {
     writeln!(
         out,
@@ -129,7 +154,10 @@ fn print_table(mut out: impl std::io::Write, messages: &[Message]) -> std::io::R
     )?;
     for (i, m) in messages.iter().enumerate() {
         let Message::Pose(p) = m else { continue };
-        let cost = messages.get(i + 1).and_then(|n| match n {
+        // The frame's anchors come between its pose and its cost.
+        let after = messages.get(i + 1..).unwrap_or_default();
+        let next = after.iter().find(|n| !matches!(n, Message::Anchor(_)));
+        let cost = next.and_then(|n| match n {
             Message::Cost(c) if c.frame_index == p.frame_index => c.total_instructions(),
             _ => None,
         });

@@ -13,10 +13,12 @@ use ferroslam_core::ar::{
 use ferroslam_core::frame::RgbdFrame;
 use ferroslam_core::geometry::{PinholeCamera, Pose};
 use ferroslam_core::map::KeyFrameId;
+use ferroslam_core::system::{ProfileTypes, Slam};
+use ferroslam_core::tracking::FrameResult;
 use nalgebra::Point3;
 use serde::Serialize;
 
-use crate::anchor_script::AnchorScript;
+use crate::anchor_script::{AnchorScript, ScriptStep};
 
 /// The paper's objects: two, at their own size.
 const OBJECTS: u16 = 2;
@@ -283,6 +285,113 @@ pub struct ArRun {
     /// objects drawn.
     #[serde(skip)]
     pub overlays: Vec<(usize, image::RgbImage)>,
+    /// The script applied as the board applies it (`None` for the paper's objects): each
+    /// command through `Slam::command` in its frame, on the world's planes found so far.
+    pub online: Option<OnlineAnchorsReport>,
+}
+
+/// A script's commands applied as the board applies those it receives on its serial link: each
+/// through the SLAM system (`Slam::command`) in its frame, right after the front end, on the
+/// world's planes found so far (no detection on the frame). `cargo xtask firmware-replay
+/// --anchors` compares the board's with these.
+#[derive(Debug)]
+pub(super) struct OnlineAnchors {
+    steps: Vec<ScriptStep>,
+    next: usize,
+    report: OnlineAnchorsReport,
+}
+
+/// The anchors a script gave through the SLAM system, as the board applies the commands it
+/// receives: what the board has.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct OnlineAnchorsReport {
+    /// Commands applied.
+    pub applied: usize,
+    /// Commands refused, in order.
+    pub refused: Vec<RefusedCommand>,
+    /// The anchors at the end, in the order their objects were first placed.
+    pub anchors: Vec<OnlineAnchor>,
+    /// FNV-1a over them (`Anchors::fingerprint`), as the firmware logs it.
+    pub fingerprint: u32,
+}
+
+/// A command [`OnlineAnchors`] refused.
+#[derive(Debug, Clone, Serialize)]
+pub struct RefusedCommand {
+    /// The frame it was applied in (0-based, as played).
+    pub frame: usize,
+    /// Its script line.
+    pub line: usize,
+    /// Why: an `AnchorError`'s name.
+    pub error: String,
+    /// The error's code (`AnchorError::code`): the detail of the board's fault message.
+    pub code: u32,
+}
+
+/// An anchor at the end of a run, in the world frame.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct OnlineAnchor {
+    /// The object's id.
+    pub object: u16,
+    /// Where it stands, metres.
+    pub position_m: [f32; 3],
+    /// Its up.
+    pub up: [f32; 3],
+    /// Its scale.
+    pub scale: f32,
+}
+
+impl OnlineAnchors {
+    /// The board's way for `plan`'s steps (`None` for the paper's objects, which the host places
+    /// on each frame's own planes).
+    pub(super) fn new(plan: &ArPlan) -> Option<Self> {
+        match plan {
+            ArPlan::Script(s) => Some(Self {
+                steps: s.steps.clone(),
+                next: 0,
+                report: OnlineAnchorsReport::default(),
+            }),
+            ArPlan::Paper => None,
+        }
+    }
+
+    /// Applies the steps of frame `index` (and any earlier not applied) to `slam`, which has
+    /// just processed `frame` with `result`.
+    pub(super) fn frame<P: ProfileTypes>(
+        &mut self,
+        index: usize,
+        slam: &mut Slam<P>,
+        (frame, cam, result): (&RgbdFrame<'_>, &PinholeCamera, &FrameResult),
+    ) {
+        while let Some(step) = self.steps.get(self.next).filter(|s| s.frame <= index) {
+            match slam.command(&step.command, frame, cam, result) {
+                Ok(_) => self.report.applied += 1,
+                Err(e) => self.report.refused.push(RefusedCommand {
+                    frame: index,
+                    line: step.line,
+                    error: format!("{e:?}"),
+                    code: e.code(),
+                }),
+            }
+            self.next += 1;
+        }
+    }
+
+    /// The report, with `slam`'s anchors at the end.
+    pub(super) fn finish<P: ProfileTypes>(mut self, slam: &Slam<P>) -> OnlineAnchorsReport {
+        let anchors = slam.anchors();
+        self.report.anchors = anchors
+            .iter()
+            .map(|a| OnlineAnchor {
+                object: a.object,
+                position_m: a.p_w,
+                up: a.up_w,
+                scale: a.scale,
+            })
+            .collect();
+        self.report.fingerprint = anchors.fingerprint();
+        self.report
+    }
 }
 
 /// `frame`'s gray image with each anchor drawn as a wireframe cube standing on its plane (side

@@ -43,7 +43,10 @@ pub(crate) fn boxed<T>(make: impl FnOnce() -> T) -> Box<T> {
     Box::new(make())
 }
 
-pub use ar::{ArEvent, ArPlan, ArRun, CUBE_SIDE_M, OBJECT_COLOURS, PlacedAnchor};
+pub use ar::{
+    ArEvent, ArPlan, ArRun, CUBE_SIDE_M, OBJECT_COLOURS, OnlineAnchor, OnlineAnchorsReport,
+    PlacedAnchor,
+};
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use map_points::MapCloud;
 pub use result::{

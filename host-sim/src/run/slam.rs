@@ -26,7 +26,7 @@ use ferroslam_core::tracking::{
 };
 
 use super::MapFiles;
-use super::ar::{ArFrame, ArPlan, ArRecorder};
+use super::ar::{ArFrame, ArPlan, ArRecorder, OnlineAnchors};
 use super::data_path::{Progress, drive};
 use super::map_points::MapPoints;
 use super::planes::KeyframePlanes;
@@ -388,6 +388,7 @@ where
     let mut record = Record::default();
     let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
     let mut planes = KeyframePlanes::new(plane_params);
+    let mut online_anchors = ar.as_ref().and_then(OnlineAnchors::new);
     let mut anchors = ar.map(|plan| ArRecorder::new(plane_params, plan));
     let (mut points, mut last_keyframe) = (MapPoints::default(), None);
     let mut stepper = Stepper {
@@ -402,6 +403,9 @@ where
     let data = drive(source, progress, |frame| {
         let r = stepper.step_then_track(frame)?;
         per_frame.push(frame_figures(frame.timestamp_s, &r));
+        if let Some(online) = &mut online_anchors {
+            online.frame(per_frame.len() - 1, stepper.slam, (frame, cam, &r));
+        }
         if let Some(kf) = r.keyframe {
             planes.observe(kf, frame, cam).map_err(|e| anyhow!("plane detection: {e:?}"))?;
             points.observe(stepper.slam.map().landmarks());
@@ -478,7 +482,10 @@ where
         state_bytes: std::mem::size_of::<Slam<P>>(),
         backend: Some(backend_report(&slam, &record, quota, schedule, scale)),
         planes: Some(planes.report(&record.keyframe_pose, slam.planes())),
-        ar: anchors.and_then(ArRecorder::finish),
+        ar: anchors.and_then(ArRecorder::finish).map(|mut run| {
+            run.online = online_anchors.map(|o| o.finish(&slam));
+            run
+        }),
         map_points: Some(map_points),
     })
 }

@@ -4,7 +4,8 @@
 //! - A run of the firmware's pipeline (`ferroslam_firmware::pipeline::run_frame`, the board's
 //!   code) on the first [`DEMO_FRAMES`] frames of the built-in demo at QVGA, with a place memory:
 //!   its UART bytes (pose and cost messages, then a status and a fault message) are the `wire`
-//!   seeds and, as TUM lines, a `trajectory` seed; the map it saves is cut to one and two records
+//!   seeds, with the link's other direction (an anchor command, the anchor reported after it and
+//!   a refused command's fault), and, as TUM lines, a `trajectory` seed; the map it saves is cut to one and two records
 //!   and an empty map for `map-file`; a 2-record flash region after one and after two commits of
 //!   those maps (`PlaceMemory::load` then `commit` on a `FlashStore`) are `flash-mount`'s.
 //! - 7-Scenes (`../shared/datasets`): the head of `rgb.txt`, `depth.txt` and `groundtruth.txt`
@@ -20,12 +21,16 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
+use ferroslam_core::ar::AnchorCommand;
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::RamStore;
 use ferroslam_core::persist::{FlashStore, SECTOR_BYTES, SliceFlash, flash_bytes_for};
-use ferroslam_core::wire::{FaultCode, FaultMessage, Message, TickUnit};
-use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, TickClock, run_frame};
+use ferroslam_core::wire::{
+    AnchorMessage, CommandMessage, FaultCode, FaultMessage, Message, TickUnit,
+};
+use ferroslam_firmware::commands::NoCommands;
+use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_sim::dataset::{Calibration, parse_image_list};
 use ferroslam_sim::map_file::{MapFile, encode_map_file};
 use ferroslam_sim::serial::{TumPoseWriter, WireWriter, decode_capture};
@@ -123,7 +128,7 @@ fn demo_run() -> Result<DemoRun> {
             pipeline.as_mut(),
             places.as_mut(),
             &cam,
-            &mut sink,
+            Link { tx: &mut sink, rx: &mut NoCommands },
             &mut clock,
             |_| 0,
         )?;
@@ -218,9 +223,29 @@ fn wire_seeds(demo: &DemoRun) -> Seeds {
         // Writing to a Vec cannot fail.
         let _ = tail.send(&m);
     }
+    // The link's other direction and the anchors: a command the host sends, the anchor the board
+    // then reports, and a command it refused.
+    let mut anchors = WireWriter::new(Vec::new());
+    let command = AnchorCommand::Place { object: 1, pixel: [80.0, 200.0], scale: 1.5 };
+    let anchor = AnchorMessage {
+        frame_index: 7,
+        object: 1,
+        position_m: [0.25, -0.5, 1.75],
+        up: [0.0, -1.0, 0.0],
+        scale: 1.5,
+    };
+    let refused = FaultMessage { frame_index: 9, code: FaultCode::Command, detail: 3 };
+    for m in [
+        Message::Command(CommandMessage { frame_index: 7, command }),
+        Message::Anchor(anchor),
+        Message::Fault(refused),
+    ] {
+        let _ = anchors.send(&m);
+    }
     vec![
         ("demo-3-frames.uart".into(), first_frames(&demo.capture, 3)),
         ("demo-fault-status.uart".into(), tail.into_inner()),
+        ("anchors.uart".into(), anchors.into_inner()),
     ]
 }
 

@@ -14,7 +14,8 @@ use ferroslam_core::persist::{FlashStore, FlashStoreError, SliceFlash};
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message, PoseFlags};
 use ferroslam_firmware::cmsdk_uart::CmsdkUart;
-use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, TickClock, run_frame};
+use ferroslam_firmware::commands::LinkCommands;
+use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_firmware::semihost_source::{SemihostFrames, SourceError};
 use ferroslam_firmware::semihosting::{HostFile, Mode, SemihostingError, command_line};
 use ferroslam_firmware::serial::{SerialError, SerialLink};
@@ -49,19 +50,23 @@ enum Failure {
     StackOverflow,
     Store(FlashStoreError),
     SaveFile(SemihostingError),
+    Commands(SemihostingError),
 }
 
 /// Camera and input file from the semihosting command line:
-/// `FRAMES fx fy cx cy width height [localize] [save=FILE]` (intrinsics at the processing
-/// resolution, in pixels). `localize`: the map in the flash store is only localized in (nothing
-/// is added to it). `save=FILE`: at the end the active map's keyframes are remembered and the
-/// store committed (a save), then the flash region's bytes are written to the host file FILE (a
-/// flash image a later boot is given).
+/// `FRAMES fx fy cx cy width height [localize] [save=FILE] [commands=FILE]` (intrinsics at the
+/// processing resolution, in pixels). `localize`: the map in the flash store is only localized
+/// in (nothing is added to it). `save=FILE`: at the end the active map's keyframes are
+/// remembered and the store committed (a save), then the flash region's bytes are written to the
+/// host file FILE (a flash image a later boot is given). `commands=FILE`: the serial link's
+/// received bytes, anchor commands the host sent (wire frames, each naming its frame): this
+/// board's receive side.
 struct Args<'a> {
     frames: &'a str,
     cam: PinholeCamera,
     localize: bool,
     save: Option<&'a str>,
+    commands: Option<&'a str>,
 }
 
 fn parse_args(text: &str) -> Result<Args<'_>, Failure> {
@@ -78,14 +83,17 @@ fn parse_args(text: &str) -> Result<Args<'_>, Failure> {
         (next(&mut words)?, next(&mut words)?, next(&mut words)?, next(&mut words)?);
     let (w, h) = (next(&mut words)?, next(&mut words)?);
     let cam = PinholeCamera::new(fx, fy, cx, cy, w, h).map_err(|_| Failure::Camera)?;
-    let (mut localize, mut save) = (false, None);
+    let (mut localize, mut save, mut commands) = (false, None, None);
     for word in words {
-        match word {
-            "localize" => localize = true,
-            _ => save = Some(word.strip_prefix("save=").ok_or(Failure::Usage)?),
+        if word == "localize" {
+            localize = true;
+        } else if let Some(path) = word.strip_prefix("save=") {
+            save = Some(path);
+        } else {
+            commands = Some(word.strip_prefix("commands=").ok_or(Failure::Usage)?);
         }
     }
-    Ok(Args { frames, cam, localize, save })
+    Ok(Args { frames, cam, localize, save, commands })
 }
 
 #[entry]
@@ -121,22 +129,9 @@ fn main() -> ! {
     let places = PLACES;
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit(EXIT_FAILURE) };
     let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
-    let before = clock.now();
-    let status = match FlashStore::mount(SliceFlash::new(place_store)) {
-        Ok(flash) => {
-            // The last committed map, if the region holds one: the run starts in it.
-            places.attach(flash);
-            let ticks = clock.now().wrapping_sub(before);
-            defmt::info!(
-                "place store: {} keyframes held (table generation {}), mounted and indexed in {} \
-                 instructions",
-                places.len(),
-                places.store().generation(),
-                u64::from(ticks) * u64::from(INSTRUCTIONS_PER_TICK)
-            );
-            run(store, pipeline, places, &mut clock)
-        }
-        Err(e) => Err(Failure::Store(e)),
+    let status = match mount(places, place_store, &mut clock) {
+        Ok(()) => run(store, pipeline, places, &mut clock),
+        Err(e) => Err(e),
     };
     let status = match status {
         Ok(()) => EXIT_SUCCESS,
@@ -146,6 +141,29 @@ fn main() -> ! {
         }
     };
     exit(status)
+}
+
+/// Mounts the flash region's store and attaches the place memory to it: the last committed map,
+/// if the region holds one, is what the run starts in. Out of line: the store's mount works on
+/// the stack (the table and bitmaps, 1.4 KB) only here, not under the frame loop.
+#[inline(never)]
+fn mount(
+    places: &mut BoardPlaces,
+    place_store: &'static mut [u8],
+    clock: &mut SysTickClock<INSTRUCTIONS_PER_TICK>,
+) -> Result<(), Failure> {
+    let before = clock.now();
+    let flash = FlashStore::mount(SliceFlash::new(place_store)).map_err(Failure::Store)?;
+    places.attach(flash);
+    let ticks = clock.now().wrapping_sub(before);
+    defmt::info!(
+        "place store: {} keyframes held (table generation {}), mounted and indexed in {} \
+         instructions",
+        places.len(),
+        places.store().generation(),
+        u64::from(ticks) * u64::from(INSTRUCTIONS_PER_TICK)
+    );
+    Ok(())
 }
 
 /// Streams every recorded frame through the pipeline and out of UART0, then sends the status.
@@ -170,13 +188,22 @@ fn run(
         }
     };
     places.freeze(args.localize);
+    let mut received = match args.commands {
+        Some(path) => {
+            let file = HostFile::open(path, Mode::Read).map_err(Failure::Commands)?;
+            defmt::info!("anchor commands: {=str}", path);
+            Some(LinkCommands::new(file))
+        }
+        None => None,
+    };
     loop {
+        let link_sides = Link { tx: &mut link, rx: &mut received };
         let outcome = run_frame(
             &mut source,
             pipeline,
             places,
             &args.cam,
-            &mut link,
+            link_sides,
             clock,
             SourceError::code,
         )
@@ -219,6 +246,8 @@ fn run(
         planes.map().dropped(),
         planes.fingerprint()
     );
+    let anchors = pipeline.slam().anchors();
+    defmt::info!("anchors: {} placed, fingerprint {=u32}", anchors.len(), anchors.fingerprint());
     link.send(&Message::Status(status)).map_err(Failure::Link)?;
     if let Some(path) = args.save {
         save(pipeline, places, &args.cam, path)?;

@@ -14,7 +14,8 @@ use ferroslam_core::persist::FlashStore;
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message};
 use ferroslam_firmware::camera::{CameraConfig, CameraError, FifoPort, RgbdCamera};
-use ferroslam_firmware::pipeline::{FrameOutcome, Pipeline, run_frame};
+use ferroslam_firmware::commands::NoCommands;
+use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, run_frame};
 use ferroslam_firmware::serial::SerialLink;
 use ferroslam_firmware::stream::HalfFrame;
 
@@ -113,7 +114,10 @@ fn main() -> ! {
     let mut frames: u32 = 0;
     loop {
         let code = |e: &CameraError<_, _, _>| e.code();
-        match run_frame(&mut camera, pipeline, places, &cam, &mut link, &mut clock, code) {
+        // No receive side yet: anchor commands need the UART's received bytes in a ring buffer
+        // (an interrupt or DMA) read without blocking the frame loop.
+        let sides = Link { tx: &mut link, rx: &mut NoCommands };
+        match run_frame(&mut camera, pipeline, places, &cam, sides, &mut clock, code) {
             Ok(FrameOutcome::Processed { .. } | FrameOutcome::Fault(_)) => {}
             // A camera never ends; a dead link leaves nothing to report to.
             Ok(FrameOutcome::End) | Err(_) => halt(),
