@@ -162,7 +162,18 @@ pub fn core_structures() -> Vec<Structure> {
             "system::OnlinePlanes",
             "the world's planes SLAM finds as it runs: a plane map of `MAX_MAP_PLANES` planes",
         ),
-        row::<QvgaSlam>("system::QvgaSlam", "QVGA front end + map + back end + its planes"),
+        row::<ferroslam_core::ar::Anchors>(
+            "ar::Anchors",
+            format!(
+                "the virtual objects placed (`Slam::command`): `MAX_ANCHORS` = {} anchors and \
+                 their keyframes",
+                ferroslam_core::config::capacity::MAX_ANCHORS
+            ),
+        ),
+        row::<QvgaSlam>(
+            "system::QvgaSlam",
+            "QVGA front end + map + back end + its planes and anchors",
+        ),
         row::<VgaSlam>("system::VgaSlam", "VGA front end + map + back end"),
         row::<HostMap>(
             "map::HostMap",
