@@ -185,10 +185,16 @@ impl Replay {
         let mut report = written.report;
         if let Some(ar) = &run.ar {
             let stamps: Vec<f64> = run.per_frame.iter().map(|f| f.timestamp_s).collect();
-            report.ar = Some(match &gt {
+            let measure = |ar: &run::ArRun| match &gt {
                 Some(gt) => ar_accuracy_with_gt(ar, &cam, gt, &stamps, eval::DEFAULT_MAX_DT_S),
                 None => ArAccuracy::unmeasured(ar),
-            });
+            };
+            let mut accuracy = measure(ar);
+            if let Some(online) = &mut accuracy.online {
+                let board = measure(&online.drawings);
+                (online.error_px, online.jitter_px) = (board.error_px, board.jitter_px);
+            }
+            report.ar = Some(accuracy);
             report.write_with_page(out, &written.scene)?;
         }
         if let Some(path) = &options.mcap {

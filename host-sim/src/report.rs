@@ -480,8 +480,15 @@ fn ar_summary(a: &crate::plane_truth::ArAccuracy) -> String {
         format!(", {refused} of {} script steps refused (report.json ar.events)", a.events.len())
     };
     let online = a.online.as_ref().map_or(String::new(), |o| {
+        let error = match &o.error_px {
+            Some(e) if e.count > 0 => {
+                format!(", pixel error median {:.2} px, p95 {:.2} px", e.median, e.p95)
+            }
+            _ => String::new(),
+        };
         format!(
-            ", as the board: {} steps applied, {} refused, {} anchors (report.json ar.online)",
+            ", as the board: {} steps applied, {} refused, {} anchors{error} (report.json \
+             ar.online)",
             o.applied,
             o.refused.len(),
             o.anchors.len()

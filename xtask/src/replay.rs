@@ -312,12 +312,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
 /// fingerprint F` line) against the host replay's (`planes.online` of its run): `Ok(summary)`
 /// when the same, `Err` naming both.
 fn compare_planes(log: &[String], host: &TrackingRun) -> Result<String> {
-    let line = log
-        .iter()
-        .find_map(|l| l.split("planes: ").nth(1))
-        .ok_or_else(|| anyhow!("the firmware logged no `planes:` line"))?;
-    let numbers: Vec<u64> =
-        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
+    let (line, numbers) = logged_numbers(log, "planes: ")?;
     let online = host.planes.as_ref().map(|p| &p.online).context("the host run has no planes")?;
     let expected = [
         online.planes as u64,
@@ -406,12 +401,7 @@ fn compare_anchors(log: &[String], capture: &Capture, host: &TrackingRun) -> Res
              {host_refused:?} (frame, error code)"
         );
     }
-    let line = log
-        .iter()
-        .find_map(|l| l.split("anchors: ").nth(1))
-        .ok_or_else(|| anyhow!("the firmware logged no `anchors:` line"))?;
-    let numbers: Vec<u64> =
-        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
+    let (line, numbers) = logged_numbers(log, "anchors: ")?;
     let logged = [online.anchors.len() as u64, u64::from(online.fingerprint)];
     if numbers != logged {
         bail!("the firmware logged `anchors: {line}`, the host has {logged:?}");
@@ -424,6 +414,17 @@ fn compare_anchors(log: &[String], capture: &Capture, host: &TrackingRun) -> Res
         online.anchors.len(),
         online.fingerprint
     ))
+}
+
+/// The firmware log's first line holding `prefix`: what follows it, and the numbers in that.
+fn logged_numbers<'a>(log: &'a [String], prefix: &str) -> Result<(&'a str, Vec<u64>)> {
+    let line = log
+        .iter()
+        .find_map(|l| l.split(prefix).nth(1))
+        .ok_or_else(|| anyhow!("the firmware logged no `{}` line", prefix.trim_end()))?;
+    let numbers =
+        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
+    Ok((line, numbers))
 }
 
 /// An anchor's object id and float fields as bits.

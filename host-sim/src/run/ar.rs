@@ -19,6 +19,7 @@ use nalgebra::Point3;
 use serde::Serialize;
 
 use crate::anchor_script::{AnchorScript, ScriptStep};
+use crate::plane_truth::PixelStats;
 
 /// The paper's objects: two, at their own size.
 const OBJECTS: u16 = 2;
@@ -66,9 +67,7 @@ pub(super) struct ArRecorder {
     /// Script steps applied so far.
     applied: usize,
     anchors: Anchors,
-    /// The entry of [`ArRun::anchors`] each placed object is drawn as, by object.
-    entries: Vec<(u16, usize)>,
-    run: ArRun,
+    drawings: Drawings,
 }
 
 impl ArRecorder {
@@ -80,8 +79,7 @@ impl ArRecorder {
             plan,
             applied: 0,
             anchors: Anchors::new(),
-            entries: Vec::new(),
-            run: ArRun::default(),
+            drawings: Drawings::default(),
         }
     }
 
@@ -103,7 +101,7 @@ impl ArRecorder {
             ArPlan::Script(script) => {
                 script.steps.get(self.applied).is_some_and(|s| s.frame <= f.index)
             }
-            ArPlan::Paper => self.run.anchors.is_empty() && f.tracked,
+            ArPlan::Paper => self.drawings.run.anchors.is_empty() && f.tracked,
         };
         let mut planes = FramePlanes::new();
         let detected =
@@ -128,19 +126,13 @@ impl ArRecorder {
                 }
             }
         }
-        if self.run.anchors.is_empty() {
+        if !self.drawings.draw(self.anchors.iter(), &f.t_wc, cam) {
             return;
         }
-        let mut drawn = vec![None; self.run.anchors.len()];
-        for a in self.anchors.iter() {
-            if let Some(&(_, entry)) = self.entries.iter().find(|(o, _)| *o == a.object) {
-                drawn[entry] = a.pixel(&f.t_wc, cam);
-            }
-        }
-        self.run.drawn.push(drawn);
-        if (f.index - self.run.frame).is_multiple_of(OVERLAY_EVERY) {
+        let run = &mut self.drawings.run;
+        if (f.index - run.frame).is_multiple_of(OVERLAY_EVERY) {
             let shown: Vec<Anchor> = self.anchors.iter().copied().collect();
-            self.run.overlays.push((f.index, overlay(frame, cam, &f.t_wc, &shown)));
+            run.overlays.push((f.index, overlay(frame, cam, &f.t_wc, &shown)));
         }
     }
 
@@ -159,7 +151,7 @@ impl ArRecorder {
                 self.applied += commands.len();
                 commands
             }
-            ArPlan::Paper if !self.run.anchors.is_empty() || !f.tracked => Vec::new(),
+            ArPlan::Paper if !self.drawings.run.anchors.is_empty() || !f.tracked => Vec::new(),
             ArPlan::Paper => {
                 let Some(planes) = planes.filter(|p| p.len() >= usize::from(OBJECTS)) else {
                     return Vec::new();
@@ -188,39 +180,24 @@ impl ArRecorder {
         result: Result<Anchor, AnchorError>,
         frame: &RgbdFrame<'_>,
     ) {
-        let object = command.object();
         if let Some(line) = line {
             let refused = result.as_ref().err().map(|e| format!("{e:?}"));
-            self.run.events.push(ArEvent { frame: index, line, command: *command, refused });
+            self.drawings.run.events.push(ArEvent {
+                frame: index,
+                line,
+                command: *command,
+                refused,
+            });
         }
-        let Ok(anchor) = result else { return };
-        match *command {
-            AnchorCommand::Place { pixel: [u, v], .. } => {
-                if self.run.anchors.is_empty() {
-                    self.run.frame = index;
-                }
-                let depth_m = frame.depth.depth_at(u, v, Anchor::MAX_RELATIVE_STEP).unwrap_or(0.0);
-                let entry = self.run.anchors.len();
-                self.run.anchors.push(PlacedAnchor {
-                    object,
-                    frame: index,
-                    pixel: [u, v],
-                    depth_m,
-                    position_m: anchor.p_w,
-                    up: anchor.up_w,
-                    scale: anchor.scale,
-                });
-                self.entries.retain(|(o, _)| *o != object);
-                self.entries.push((object, entry));
-            }
-            AnchorCommand::Scale { .. } => {}
-            AnchorCommand::Remove { .. } => self.entries.retain(|(o, _)| *o != object),
+        if let Ok(anchor) = result {
+            self.drawings.applied(index, command, &anchor, frame);
         }
     }
 
     /// What was placed and drawn (`None`: nothing placed and no script step).
     pub(super) fn finish(self) -> Option<ArRun> {
-        (!self.run.anchors.is_empty() || !self.run.events.is_empty()).then_some(self.run)
+        let run = self.drawings.run;
+        (!run.anchors.is_empty() || !run.events.is_empty()).then_some(run)
     }
 }
 
@@ -290,6 +267,72 @@ pub struct ArRun {
     pub online: Option<OnlineAnchorsReport>,
 }
 
+/// Where each placed object is drawn, frame by frame: the placements and drawings of an
+/// [`ArRun`], kept the same way for the host's anchors and the board's.
+#[derive(Debug, Default)]
+struct Drawings {
+    run: ArRun,
+    /// The entry of [`ArRun::anchors`] each placed object is drawn as, by object.
+    entries: Vec<(u16, usize)>,
+}
+
+impl Drawings {
+    /// `command`, applied in frame `index` (`frame`), gave `anchor`: a place is a new entry,
+    /// drawn from now on in place of the object's earlier one; a remove ends the object's.
+    fn applied(
+        &mut self,
+        index: usize,
+        command: &AnchorCommand,
+        anchor: &Anchor,
+        frame: &RgbdFrame<'_>,
+    ) {
+        let object = command.object();
+        match *command {
+            AnchorCommand::Place { pixel: [u, v], .. } => {
+                if self.run.anchors.is_empty() {
+                    self.run.frame = index;
+                }
+                let depth_m = frame.depth.depth_at(u, v, Anchor::MAX_RELATIVE_STEP).unwrap_or(0.0);
+                let entry = self.run.anchors.len();
+                self.run.anchors.push(PlacedAnchor {
+                    object,
+                    frame: index,
+                    pixel: [u, v],
+                    depth_m,
+                    position_m: anchor.p_w,
+                    up: anchor.up_w,
+                    scale: anchor.scale,
+                });
+                self.entries.retain(|(o, _)| *o != object);
+                self.entries.push((object, entry));
+            }
+            AnchorCommand::Scale { .. } => {}
+            AnchorCommand::Remove { .. } => self.entries.retain(|(o, _)| *o != object),
+        }
+    }
+
+    /// Records where a frame at `t_wc` draws `anchors` (each as its object's entry); `false`,
+    /// recording nothing, before the first placement.
+    fn draw<'a>(
+        &mut self,
+        anchors: impl Iterator<Item = &'a Anchor>,
+        t_wc: &Pose,
+        cam: &PinholeCamera,
+    ) -> bool {
+        if self.run.anchors.is_empty() {
+            return false;
+        }
+        let mut drawn = vec![None; self.run.anchors.len()];
+        for a in anchors {
+            if let Some(&(_, entry)) = self.entries.iter().find(|(o, _)| *o == a.object) {
+                drawn[entry] = a.pixel(t_wc, cam);
+            }
+        }
+        self.run.drawn.push(drawn);
+        true
+    }
+}
+
 /// A script's commands applied as the board applies those it receives on its serial link: each
 /// through the SLAM system (`Slam::command`) in its frame, right after the front end, on the
 /// world's planes found so far (no detection on the frame). `cargo xtask firmware-replay
@@ -299,6 +342,7 @@ pub(super) struct OnlineAnchors {
     steps: Vec<ScriptStep>,
     next: usize,
     report: OnlineAnchorsReport,
+    drawings: Drawings,
 }
 
 /// The anchors a script gave through the SLAM system, as the board applies the commands it
@@ -313,6 +357,14 @@ pub struct OnlineAnchorsReport {
     pub anchors: Vec<OnlineAnchor>,
     /// FNV-1a over them (`Anchors::fingerprint`), as the firmware logs it.
     pub fingerprint: u32,
+    /// The placements and where each frame drew them (measured as the host's anchors are:
+    /// `error_px`, `jitter_px`).
+    #[serde(skip)]
+    pub drawings: Box<ArRun>,
+    /// Pixel error of every object in every frame counted (`None`: not measured).
+    pub error_px: Option<PixelStats>,
+    /// Frame-to-frame jitter of that error (`None`: not measured).
+    pub jitter_px: Option<PixelStats>,
 }
 
 /// A command [`OnlineAnchors`] refused.
@@ -350,13 +402,14 @@ impl OnlineAnchors {
                 steps: s.steps.clone(),
                 next: 0,
                 report: OnlineAnchorsReport::default(),
+                drawings: Drawings::default(),
             }),
             ArPlan::Paper => None,
         }
     }
 
     /// Applies the steps of frame `index` (and any earlier not applied) to `slam`, which has
-    /// just processed `frame` with `result`.
+    /// just processed `frame` with `result`, then records where the frame draws the anchors.
     pub(super) fn frame<P: ProfileTypes>(
         &mut self,
         index: usize,
@@ -365,7 +418,10 @@ impl OnlineAnchors {
     ) {
         while let Some(step) = self.steps.get(self.next).filter(|s| s.frame <= index) {
             match slam.command(&step.command, frame, cam, result) {
-                Ok(_) => self.report.applied += 1,
+                Ok(anchor) => {
+                    self.report.applied += 1;
+                    self.drawings.applied(index, &step.command, &anchor, frame);
+                }
                 Err(e) => self.report.refused.push(RefusedCommand {
                     frame: index,
                     line: step.line,
@@ -375,6 +431,7 @@ impl OnlineAnchors {
             }
             self.next += 1;
         }
+        self.drawings.draw(slam.anchors().iter(), &result.t_wc, cam);
     }
 
     /// The report, with `slam`'s anchors at the end.
@@ -390,6 +447,7 @@ impl OnlineAnchors {
             })
             .collect();
         self.report.fingerprint = anchors.fingerprint();
+        self.report.drawings = Box::new(self.drawings.run);
         self.report
     }
 }
