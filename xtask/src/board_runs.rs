@@ -32,6 +32,20 @@ pub const LOCALIZE_FRAMES: &str = "500-999";
 /// # Errors
 /// As [`crate::replay::run`]: a build, QEMU or file failure, or poses that differ.
 pub fn seven_scenes(frames: Option<&str>, out: PathBuf, maps: BoardMaps) -> Result<()> {
+    seven_scenes_with(frames, out, maps, None)
+}
+
+/// [`seven_scenes`] with the anchor script `anchors` sent to the board (`firmware-replay
+/// --anchors`).
+///
+/// # Errors
+/// As [`seven_scenes`], or anchors that differ.
+pub fn seven_scenes_with(
+    frames: Option<&str>,
+    out: PathBuf,
+    maps: BoardMaps,
+    anchors: Option<PathBuf>,
+) -> Result<()> {
     let opts = ReplayOptions {
         dataset: root().join(SEVEN_SCENES),
         calibration: Some(root().join(SEVEN_SCENES_CALIBRATION)),
@@ -40,7 +54,7 @@ pub fn seven_scenes(frames: Option<&str>, out: PathBuf, maps: BoardMaps) -> Resu
         out,
         qemu_args: Vec::new(),
         maps,
-        anchors: None,
+        anchors,
     };
     crate::replay::run(&root(), &opts)
 }

@@ -281,11 +281,13 @@ fn no_allocator_in(elf: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The firmware in QEMU on 7-Scenes and on the second recording of the budgets
-/// ([`crate::fast_demo`]), every pose bit-identical to the host replay's (see `replay.rs`); then
-/// the jump-back and the power cycle of [`crate::board_runs`].
+/// The firmware in QEMU on 7-Scenes (receiving the budgets' anchor commands, its anchors the
+/// host's) and on the second recording of the budgets ([`crate::fast_demo`]), every pose
+/// bit-identical to the host replay's (see `replay.rs`); then the jump-back and the power cycle
+/// of [`crate::board_runs`].
 fn firmware_replay() -> Result<()> {
-    board_runs::seven_scenes(None, firmware_replay_dir(), BoardMaps::default())?;
+    let anchors = Some(root().join(crate::budgets::BOARD_ANCHORS));
+    board_runs::seven_scenes_with(None, firmware_replay_dir(), BoardMaps::default(), anchors)?;
     crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
     firmware_jump_back()?;
     firmware_power_cycle()
