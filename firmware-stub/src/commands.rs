@@ -111,13 +111,14 @@ impl<R: embedded_io::Read> CommandSource for LinkCommands<R> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use ferroslam_core::ar::AnchorCommand;
     use ferroslam_core::wire::{MAX_FRAME_ON_WIRE, encode};
     use std::vec::Vec;
 
-    fn wire(messages: &[Message]) -> Vec<u8> {
+    /// `messages` as the bytes on the wire, one frame each (for this crate's tests).
+    pub(crate) fn wire(messages: &[Message]) -> Vec<u8> {
         let mut bytes = Vec::new();
         for m in messages {
             let mut buf = [0u8; MAX_FRAME_ON_WIRE];

@@ -377,7 +377,7 @@ mod tests {
     fn commands_not_applied_are_faults_of_their_frame() {
         use crate::commands::LinkCommands;
         use ferroslam_core::ar::AnchorCommand;
-        use ferroslam_core::wire::{CommandMessage, MAX_FRAME_ON_WIRE, encode};
+        use ferroslam_core::wire::CommandMessage;
 
         let mut source = Script {
             gray: std::vec![128; 320 * 240],
@@ -389,17 +389,12 @@ mod tests {
         let mut pipeline = Box::new(Pipeline::new());
         let (mut sink, mut clock) = (Recorder::default(), Counter(0));
         // Frame 1: a place (the wall is never tracked) and a scale of an object never placed.
-        let mut bytes = Vec::new();
         let commands = [
             AnchorCommand::Place { object: 0, pixel: [160.0, 120.0], scale: 1.0 },
             AnchorCommand::Scale { object: 7, scale: 2.0 },
-        ];
-        for command in commands {
-            let mut buf = [0u8; MAX_FRAME_ON_WIRE];
-            let message = Message::Command(CommandMessage { frame_index: 1, command });
-            let n = encode(&message, &mut buf).unwrap();
-            bytes.extend_from_slice(&buf[..n]);
-        }
+        ]
+        .map(|command| Message::Command(CommandMessage { frame_index: 1, command }));
+        let bytes = crate::commands::tests::wire(&commands);
         let mut rx = LinkCommands::new(&bytes[..]);
         for _ in 0..2 {
             let link = Link { tx: &mut sink, rx: &mut rx };

@@ -167,12 +167,8 @@ fn track(
         report.plane_accuracy = Some(plane_accuracy(&truth, planes, &t_gt_est, PLANE_MIN_FRACTION));
     }
     if let (Some(ar), Some(sequence)) = (&run.ar, &truth_sequence) {
-        let mut accuracy = ar_accuracy(sequence, options.skip_frames, ar, &cam);
-        if let Some(online) = &mut accuracy.online {
-            let board = ar_accuracy(sequence, options.skip_frames, &online.drawings, &cam);
-            (online.error_px, online.jitter_px) = (board.error_px, board.jitter_px);
-        }
-        report.ar = Some(accuracy);
+        let measure = |ar: &_| ar_accuracy(sequence, options.skip_frames, ar, &cam);
+        report.ar = Some(measure(ar).with_online(measure));
     }
     if report.plane_accuracy.is_some() || report.ar.is_some() {
         report.write_with_page(out, &written.scene)?;

@@ -212,6 +212,16 @@ pub struct ArAccuracy {
 }
 
 impl ArAccuracy {
+    /// This accuracy with the board's anchors (`online`, when the run has them) measured by
+    /// `measure` too: their pixel error and jitter.
+    pub fn with_online(mut self, measure: impl Fn(&crate::run::ArRun) -> Self) -> Self {
+        if let Some(online) = &mut self.online {
+            let board = measure(&online.drawings);
+            (online.error_px, online.jitter_px) = (board.error_px, board.jitter_px);
+        }
+        self
+    }
+
     /// `ar`'s placements and events, without a truth to measure them against.
     pub fn unmeasured(ar: &crate::run::ArRun) -> Self {
         Self {

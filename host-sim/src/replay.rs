@@ -189,12 +189,7 @@ impl Replay {
                 Some(gt) => ar_accuracy_with_gt(ar, &cam, gt, &stamps, eval::DEFAULT_MAX_DT_S),
                 None => ArAccuracy::unmeasured(ar),
             };
-            let mut accuracy = measure(ar);
-            if let Some(online) = &mut accuracy.online {
-                let board = measure(&online.drawings);
-                (online.error_px, online.jitter_px) = (board.error_px, board.jitter_px);
-            }
-            report.ar = Some(accuracy);
+            report.ar = Some(measure(ar).with_online(measure));
             report.write_with_page(out, &written.scene)?;
         }
         if let Some(path) = &options.mcap {

@@ -28,20 +28,20 @@ use std::time::Duration;
 use anyhow::{Context, Result, anyhow, bail};
 use ferroslam_core::config::capacity::PLACE_RECORD_BYTES;
 use ferroslam_core::config::{QVGA, VGA};
+use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::persist::{FlashStore, MAP_HEADER_BYTES, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{
-    CommandMessage, FaultCode, MAX_FRAME_ON_WIRE, Message, PoseFlags, PoseMessage, TrackingState,
-    encode,
+    CommandMessage, FaultCode, Message, PoseFlags, PoseMessage, TrackingState,
 };
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::anchor_script::AnchorScript;
 use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::run::{self, ArPlan, RunOptions, TrackMode, TrackingRun};
-use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
+use ferroslam_sim::serial::{Capture, WireWriter, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
 
@@ -343,15 +343,13 @@ pub const COMMANDS: &str = "commands.bin";
 /// Writes `script`'s steps as the host sends them to the board: one wire frame of a
 /// [`CommandMessage`] per step, in order.
 fn write_commands(script: &AnchorScript, path: &Path) -> Result<()> {
-    let mut bytes = Vec::new();
+    let mut wire = WireWriter::new(Vec::new());
     for step in &script.steps {
         let frame_index = u32::try_from(step.frame).context("a script frame past u32")?;
-        let message = Message::Command(CommandMessage { frame_index, command: step.command });
-        let mut buf = [0u8; MAX_FRAME_ON_WIRE];
-        let n = encode(&message, &mut buf).map_err(|e| anyhow!("encoding a command: {e:?}"))?;
-        bytes.extend_from_slice(buf.get(..n).unwrap_or_default());
+        wire.send(&Message::Command(CommandMessage { frame_index, command: step.command }))
+            .context("encoding a command")?;
     }
-    fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
+    fs::write(path, wire.into_inner()).with_context(|| format!("writing {}", path.display()))
 }
 
 /// The anchors the firmware placed against the host replay's (`ar.online` of its run): the

@@ -129,10 +129,8 @@ fn main() -> ! {
     let places = PLACES;
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit(EXIT_FAILURE) };
     let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
-    let status = match mount(places, place_store, &mut clock) {
-        Ok(()) => run(store, pipeline, places, &mut clock),
-        Err(e) => Err(e),
-    };
+    let status = mount(places, place_store, &mut clock)
+        .and_then(|()| run(store, pipeline, places, &mut clock));
     let status = match status {
         Ok(()) => EXIT_SUCCESS,
         Err(e) => {
