@@ -6,8 +6,11 @@
 //! for a fixed quota of work units ([`BACKEND_QUOTA`]) before the next frame: the same schedule
 //! as the host's deterministic replay, so both give the same bits.
 
+use ferroslam_core::ar::WorldError;
 use ferroslam_core::frame::{FrameSource, RgbdFrame, TelemetrySink};
 use ferroslam_core::geometry::PinholeCamera;
+use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::map::KeyframeStore;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, DEFAULT_DRAIN_STEPS, MapAccess, QvgaSlam};
 use ferroslam_core::tracking::{FrameResult, FrontendError, Places};
 use ferroslam_core::wire::{
@@ -116,6 +119,32 @@ impl Pipeline {
             self.note_fault();
         }
         self.slam.map().remember_all_in(places);
+    }
+
+    /// Makes the place memory's records, then the world's planes and anchors, what a boot finds
+    /// (`PlaceMemory::commit`).
+    ///
+    /// # Errors
+    /// The store's; the last commit stands then.
+    pub fn commit<S: KeyframeStore>(&self, places: &mut PlaceMemory<S>) -> Result<(), S::Error> {
+        places.commit(Some(&self.slam.world()))
+    }
+
+    /// Starts from the planes and anchors the store `places` was attached to held (a boot in a
+    /// saved map: `PlaceMemory::held_world`), before the first frame. Returns the planes and
+    /// anchors taken, `None` when the store held none. Out of line: the world read back (about
+    /// 3 KB) is stacked only while it runs, at boot.
+    ///
+    /// # Errors
+    /// What is wrong with the saved world: nothing of it is taken (the records still are).
+    #[inline(never)]
+    pub fn restore_world<S: KeyframeStore>(
+        &mut self,
+        places: &mut PlaceMemory<S>,
+    ) -> Result<Option<(usize, usize)>, WorldError> {
+        let Some(world) = places.held_world().transpose()? else { return Ok(None) };
+        self.slam.restore_world(&world);
+        Ok(Some((world.planes().len(), world.anchors().len())))
     }
 
     /// The core's state (map, front end, back end), read only: what a host check inspects.

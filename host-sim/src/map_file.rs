@@ -7,18 +7,21 @@ use std::fmt;
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};
 
+use ferroslam_core::ar::{SavedWorld, WORLD_UNITS};
 use ferroslam_core::config::capacity::{BOARD_STORE_KEYFRAMES, PLACE_RECORD_BYTES};
 use ferroslam_core::loops::INDEXED_RECORDS;
 use ferroslam_core::map::{PlaceRecord, RecordBytes, RecordError};
 use ferroslam_core::persist::{
     MAP_HEADER_BYTES, MAP_LAYOUT, MAP_VERSION, MapFileError, MapHeader, RecordLayout,
-    RecordsChecksum, check_map_file, map_records,
+    RecordsChecksum, check_map_file, map_records, map_world,
 };
 
 /// Records a map file may hold: what the host's place memory (a store of
-/// [`BOARD_STORE_KEYFRAMES`] records, as the board's) takes on `replay --load-map`.
+/// [`BOARD_STORE_KEYFRAMES`] slots, as the board's, [`WORLD_UNITS`] of them kept for the planes
+/// and anchors) takes on `replay --load-map`.
 pub const MAX_MAP_RECORDS: usize =
-    if BOARD_STORE_KEYFRAMES < INDEXED_RECORDS { BOARD_STORE_KEYFRAMES } else { INDEXED_RECORDS };
+    if BOARD_STORE_KEYFRAMES < INDEXED_RECORDS { BOARD_STORE_KEYFRAMES } else { INDEXED_RECORDS }
+        - WORLD_UNITS;
 
 /// Colour of the verification points in an exported PLY (red, green, blue): light grey.
 pub const PLY_POINT_RGB: [u8; 3] = [170, 170, 170];
@@ -72,8 +75,14 @@ pub struct MapFile {
     pub header: MapHeader,
     /// Bytes of the file.
     pub file_bytes: usize,
+    /// The format version it was written in.
+    pub version: u8,
     /// The records (remembered keyframes), decoded.
     pub records: Vec<PlaceRecord>,
+    /// The planes and anchors after them (`None`: a file without them, as version 2 wrote).
+    pub world: Option<SavedWorld>,
+    /// The world units' bytes, as read (written back by [`Self::to_bytes`]).
+    world_units: Vec<u8>,
 }
 
 impl MapFile {
@@ -122,13 +131,19 @@ impl MapFile {
                 decode(chunk).map_err(|source| MapFault::Record { index, source })
             })
             .collect::<Result<_, _>>()?;
-        Ok(Self { header, file_bytes: bytes.len(), records })
+        let world = map_world(bytes)?;
+        let records_end = MAP_HEADER_BYTES + header.records as usize * PLACE_RECORD_BYTES;
+        let world_units = bytes.get(records_end..);
+        let world_units = world_units.filter(|_| world.is_some()).unwrap_or(&[]).to_vec();
+        let version = bytes.get(4).copied().unwrap_or(MAP_VERSION);
+        Ok(Self { header, file_bytes: bytes.len(), version, records, world, world_units })
     }
 
-    /// The file's bytes: the header, then the records in order (what `PlaceMemory::save`
-    /// writes for a memory holding these records).
+    /// The file's bytes: the header, then the records in order, then the world units (what
+    /// `PlaceMemory::save` writes for a memory holding these records and this world), in the
+    /// format this build writes.
     pub fn to_bytes(&self) -> Vec<u8> {
-        encode_map_file(&self.records)
+        encode_map_file_with(&self.records, &self.world_units)
     }
 
     /// What the file holds, in figures.
@@ -145,7 +160,9 @@ impl MapFile {
             extent_m = Some(extent_m.map_or(Extent { min: p, max: p }, |e| e.grown(p)));
         }
         MapSummary {
-            version: MAP_VERSION,
+            version: self.version,
+            planes: self.world.as_ref().map(|w| w.planes().len()),
+            anchors: self.world.as_ref().map(|w| w.anchors().len()),
             file_bytes: self.file_bytes,
             layout: MAP_LAYOUT,
             keyframes: self.records.len(),
@@ -212,19 +229,30 @@ impl MapFile {
     }
 }
 
-/// The map file of `records`, in this order: the header (record count, checksum), then each
-/// record's bytes ([`PlaceRecord::encode`]).
+/// The map file of `records` without planes or anchors, in this order: the header (record count,
+/// checksum), then each record's bytes ([`PlaceRecord::encode`]).
 pub fn encode_map_file(records: &[PlaceRecord]) -> Vec<u8> {
-    let mut body = Vec::with_capacity(records.len() * PLACE_RECORD_BYTES);
-    let mut checksum = RecordsChecksum::default();
+    encode_map_file_with(records, &[])
+}
+
+/// The map file of `records`, then `world_units` (the bytes of [`WORLD_UNITS`] world units, or
+/// none).
+fn encode_map_file_with(records: &[PlaceRecord], world_units: &[u8]) -> Vec<u8> {
+    let mut body = Vec::with_capacity(records.len() * PLACE_RECORD_BYTES + world_units.len());
     let mut buf: RecordBytes = [0; PLACE_RECORD_BYTES];
     for r in records {
         r.encode(&mut buf);
-        checksum.add(&buf);
         body.extend_from_slice(&buf);
     }
-    let records = u32::try_from(records.len()).unwrap_or(u32::MAX);
-    let mut file = MapHeader { records, checksum: checksum.value() }.encode().to_vec();
+    body.extend_from_slice(world_units);
+    let mut checksum = RecordsChecksum::default();
+    checksum.add(&body);
+    let header = MapHeader {
+        records: u32::try_from(records.len()).unwrap_or(u32::MAX),
+        world_units: (world_units.len() / PLACE_RECORD_BYTES) as u8,
+        checksum: checksum.value(),
+    };
+    let mut file = header.encode().to_vec();
     file.extend_from_slice(&body);
     file
 }
@@ -320,7 +348,11 @@ pub struct MapSummary {
     pub layout: RecordLayout,
     /// Records: remembered keyframes.
     pub keyframes: usize,
-    /// The header's FNV-1a checksum of the records (the records were checked against it).
+    /// Planes saved with the map (`None`: the file holds no planes or anchors).
+    pub planes: Option<usize>,
+    /// Anchors saved with the map (`None` as for `planes`).
+    pub anchors: Option<usize>,
+    /// The header's FNV-1a checksum of the records and world units (checked against them).
     pub checksum: u32,
     /// Verification points; `None` for a map of no keyframes.
     pub points: Option<PointCounts>,
@@ -338,7 +370,11 @@ impl fmt::Display for MapSummary {
             self.version, self.layout
         )?;
         writeln!(f, "file: {} bytes", self.file_bytes)?;
-        writeln!(f, "checksum: {:#010x} (FNV-1a of the records: matches)", self.checksum)?;
+        writeln!(
+            f,
+            "checksum: {:#010x} (FNV-1a of the records and world: matches)",
+            self.checksum
+        )?;
         writeln!(f, "keyframes: {}", self.keyframes)?;
         match &self.points {
             Some(p) => writeln!(
@@ -349,6 +385,10 @@ impl fmt::Display for MapSummary {
             None => writeln!(f, "verification points: 0")?,
         }
         writeln!(f, "segments: not stored in this format")?;
+        match (self.planes, self.anchors) {
+            (Some(p), Some(a)) => writeln!(f, "planes: {p}, anchors: {a}")?,
+            _ => writeln!(f, "planes and anchors: not in this file")?,
+        }
         match self.timestamps_s {
             Some((a, b)) => writeln!(f, "timestamps: {a:.6} s to {b:.6} s ({:.3} s)", b - a)?,
             None => writeln!(f, "timestamps: none")?,

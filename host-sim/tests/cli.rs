@@ -540,7 +540,7 @@ fn map_info_and_export_read_a_map_file() {
         "keyframes: 3",
         "verification points: 30 (per keyframe: min 10, median 10, max 10)",
         "file: 3092 bytes",
-        "(FNV-1a of the records: matches)",
+        "(FNV-1a of the records and world: matches)",
         "segments: not stored in this format",
         "timestamps: 0.000000 s to 1.000000 s",
         "x 0.000 to 2.000",
@@ -608,21 +608,24 @@ fn a_map_saved_by_a_replay_reads_back_with_its_keyframes() {
     let args = ["replay", data.to_str().unwrap(), "--out", out.to_str().unwrap()];
     let run = sim(&[&args[..], &["--save-map", map.to_str().unwrap()]].concat());
     assert!(run.status.success(), "{}", stderr(&run));
-    // The replay says "map: N keyframes saved to FILE (B bytes)".
+    // The replay says "map: N keyframes, P planes and A anchors saved to FILE (B bytes)".
     let msg = stderr(&run);
-    let saved = msg
+    let (keyframes, planes) = msg
         .lines()
-        .find_map(|l| l.strip_prefix("map: ")?.split_once(" keyframes saved"))
-        .map(|(n, _)| n)
-        .unwrap_or_else(|| panic!("the replay names the keyframes saved: {msg}"));
-    let keyframes: usize = saved.parse().unwrap();
-    assert!(keyframes > 1, "{msg}");
+        .filter(|l| l.contains(" anchors saved to "))
+        .find_map(|l| {
+            let (n, rest) = l.strip_prefix("map: ")?.split_once(" keyframes, ")?;
+            Some((n.parse::<usize>().ok()?, rest.split_once(" planes")?.0.parse::<usize>().ok()?))
+        })
+        .unwrap_or_else(|| panic!("the replay names the keyframes and planes saved: {msg}"));
+    assert!(keyframes > 1 && planes > 0, "{msg}");
 
     let run = sim(&["map", "info", map.to_str().unwrap()]);
     assert!(run.status.success(), "{}", stderr(&run));
     let info = String::from_utf8_lossy(&run.stdout);
     assert!(info.contains(&format!("keyframes: {keyframes}\n")), "{info}");
-    assert!(info.contains("(FNV-1a of the records: matches)"), "{info}");
+    assert!(info.contains(&format!("planes: {planes}, anchors: 0\n")), "{info}");
+    assert!(info.contains("(FNV-1a of the records and world: matches)"), "{info}");
     let file_bytes = std::fs::metadata(&map).unwrap().len();
     assert!(info.contains(&format!("file: {file_bytes} bytes")), "{info}");
 

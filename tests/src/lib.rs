@@ -79,4 +79,31 @@ pub mod demo_frames {
         let played = Played { sequence, order, next: 0, frame };
         (ProfileSource::new(played, QVGA.downsample_levels, QVGA.depth_level), cam, truth)
     }
+
+    /// Places objects 0, 1, ... at `pixels` of `frame` through `slam` as the board does
+    /// (`Slam::command`, scale 1), `result` the frame's; returns where each belongs: the true
+    /// point under its pixel (`t_true` the frame's ground truth, camera to world).
+    ///
+    /// # Panics
+    /// When a place is refused or a pixel has no depth (test code).
+    pub fn place_objects(
+        slam: &mut ferroslam_core::system::QvgaSlam,
+        (frame, cam, result): (
+            &RgbdFrame<'_>,
+            &PinholeCamera,
+            &ferroslam_core::tracking::FrameResult,
+        ),
+        t_true: &nalgebra::Isometry3<f32>,
+        pixels: &[(f32, f32)],
+    ) -> Vec<nalgebra::Point3<f32>> {
+        let mut placed = Vec::new();
+        for (object, &(u, v)) in (0u16..).zip(pixels) {
+            let place =
+                ferroslam_core::ar::AnchorCommand::Place { object, pixel: [u, v], scale: 1.0 };
+            slam.command(&place, frame, cam, result).expect("placed");
+            let z = frame.depth.depth_at(u, v, 0.05).expect("depth under the pixel");
+            placed.push(t_true * cam.back_project(u, v, z));
+        }
+        placed
+    }
 }

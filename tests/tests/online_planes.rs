@@ -12,7 +12,7 @@ use ferroslam_core::ar::{AnchorCommand, AnchorError, MapPlane};
 use ferroslam_core::frame::FrameSource;
 use ferroslam_core::system::{DEFAULT_BACKEND_QUOTA, QvgaSlam};
 use ferroslam_sim::synth::{SynthOptions, SyntheticSequence};
-use ferroslam_tests::demo_frames::demo_frames;
+use ferroslam_tests::demo_frames::{demo_frames, place_objects};
 use nalgebra::Vector3;
 
 /// The frames whose visible faces are checked: every 25th from the 30th.
@@ -38,13 +38,7 @@ fn the_planes_found_as_slam_runs_hold_the_rooms_faces() {
         let r = slam.process(&frame, &cam).unwrap();
         keyframes += usize::from(r.keyframe.is_some());
         if index == PLACE_FRAME {
-            for (object, (u, v)) in PLACE_PIXELS.into_iter().enumerate() {
-                let place =
-                    AnchorCommand::Place { object: object as u16, pixel: [u, v], scale: 1.0 };
-                slam.command(&place, &frame, &cam, &r).unwrap();
-                let z = frame.depth.depth_at(u, v, 0.05).unwrap();
-                placed.push(truth[index] * cam.back_project(u, v, z));
-            }
+            placed = place_objects(&mut slam, (&frame, &cam, &r), &truth[index], &PLACE_PIXELS);
             let outside = AnchorCommand::Place { object: 9, pixel: [-5.0, 10.0], scale: 1.0 };
             assert_eq!(slam.command(&outside, &frame, &cam, &r), Err(AnchorError::OutsideImage));
             let unknown = AnchorCommand::Scale { object: 9, scale: 2.0 };

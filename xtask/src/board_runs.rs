@@ -70,16 +70,27 @@ pub fn jump_back(out: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The power cycle: [`SAVE_FRAMES`] on the board into `first`, saving its map, then a second
-/// boot with that flash image localizing on [`LOCALIZE_FRAMES`] into `second`.
+/// The anchor script the board receives on 7-Scenes (`firmware-replay --anchors`): in the
+/// budgets' run, CI's firmware run and the power cycle's first run.
+pub const BOARD_ANCHORS: &str = "docs/anchor-scripts/7scenes-board.toml";
+
+/// The anchor script of the power cycle's second boot: it changes objects the first run placed,
+/// so it applies only where the boot took the saved anchors.
+pub const BOOT_ANCHORS: &str = "docs/anchor-scripts/7scenes-boot.toml";
+
+/// The power cycle: [`SAVE_FRAMES`] on the board into `first`, receiving the budgets' anchor
+/// commands and saving its map (its planes and anchors with it), then a second boot with that
+/// flash image localizing on [`LOCALIZE_FRAMES`] into `second`, receiving [`BOOT_ANCHORS`].
 ///
 /// # Errors
 /// As [`seven_scenes`], for either run.
 pub fn power_cycle(first: &Path, second: &Path) -> Result<()> {
     let save = BoardMaps { save: true, ..Default::default() };
-    seven_scenes(Some(SAVE_FRAMES), first.to_path_buf(), save)?;
+    let anchors = Some(root().join(BOARD_ANCHORS));
+    seven_scenes_with(Some(SAVE_FRAMES), first.to_path_buf(), save, anchors)?;
     let boot = BoardMaps { boot_from: Some(first.to_path_buf()), localize: true, save: false };
-    seven_scenes(Some(LOCALIZE_FRAMES), second.to_path_buf(), boot)
+    let anchors = Some(root().join(BOOT_ANCHORS));
+    seven_scenes_with(Some(LOCALIZE_FRAMES), second.to_path_buf(), boot, anchors)
 }
 
 /// The keyframes held and the instructions of the mount in the firmware's log: its line

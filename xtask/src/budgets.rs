@@ -73,9 +73,6 @@ pub const P99_MIN_FRAMES: usize = 100;
 /// Frames replayed when no `--from` run is given (all of 7-Scenes, as CI).
 const DEFAULT_FRAMES: usize = 1000;
 
-/// The anchor script the board receives on 7-Scenes (`firmware-replay --anchors`).
-pub const BOARD_ANCHORS: &str = "docs/anchor-scripts/7scenes-board.toml";
-
 /// The name of the figures of the jump-back run ([`board_runs::jump_back`]): the frames of a
 /// relocalization from the flash store are budgeted too.
 pub const JUMP_BACK_RUN: &str = "jump_back";
@@ -215,7 +212,7 @@ fn measure(root: &Path, opts: &Options) -> Result<Measurements> {
                 // On 7-Scenes the board also receives anchor commands (their cost is in the
                 // figures; the anchors are checked against the host's).
                 anchors: (opts.dataset == root.join(SEVEN_SCENES))
-                    .then(|| root.join(BOARD_ANCHORS)),
+                    .then(|| root.join(board_runs::BOARD_ANCHORS)),
             };
             replay::run(root, &replay)?;
             opts.out.clone()

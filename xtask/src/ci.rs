@@ -286,7 +286,7 @@ fn no_allocator_in(elf: &Path) -> Result<()> {
 /// bit-identical to the host replay's (see `replay.rs`); then the jump-back and the power cycle
 /// of [`crate::board_runs`].
 fn firmware_replay() -> Result<()> {
-    let anchors = Some(root().join(crate::budgets::BOARD_ANCHORS));
+    let anchors = Some(root().join(crate::board_runs::BOARD_ANCHORS));
     board_runs::seven_scenes_with(None, firmware_replay_dir(), BoardMaps::default(), anchors)?;
     crate::fast_demo::write_and_replay(&root(), &fast_demo_replay_dir())?;
     firmware_jump_back()?;

@@ -69,7 +69,7 @@ pub fn run(args: &[String]) -> Result<()> {
         maps: Default::default(),
         // The budgets' run, commands included.
         anchors: (opts.dataset == root.join(SEVEN_SCENES))
-            .then(|| root.join(crate::budgets::BOARD_ANCHORS)),
+            .then(|| root.join(crate::board_runs::BOARD_ANCHORS)),
     };
     replay::run(&root, &replay)?;
     let frames = FirmwareRun::read(&out.join("cost.json"))?.frames.len();

@@ -26,12 +26,12 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
-use ferroslam_core::config::capacity::PLACE_RECORD_BYTES;
+use ferroslam_core::ar::{SavedWorld, World};
 use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::loops::PlaceMemory;
-use ferroslam_core::persist::{FlashStore, MAP_HEADER_BYTES, SliceFlash};
+use ferroslam_core::persist::{FlashStore, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{
     CommandMessage, FaultCode, Message, PoseFlags, PoseMessage, TrackingState,
@@ -40,6 +40,7 @@ use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::anchor_script::AnchorScript;
 use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
+use ferroslam_sim::map_file::MapFile;
 use ferroslam_sim::run::{self, ArPlan, RunOptions, TrackMode, TrackingRun};
 use ferroslam_sim::serial::{Capture, WireWriter, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
@@ -452,10 +453,13 @@ fn compare_saved_maps(out: &Path) -> Result<Result<String>> {
     let board = map_in_flash_image(&mut image)?;
     let host = fs::read(out.join(HOST_MAP)).with_context(|| format!("reading {HOST_MAP}"))?;
     if board == host {
-        let records = board.len().saturating_sub(MAP_HEADER_BYTES) / PLACE_RECORD_BYTES;
+        let map = MapFile::from_bytes(&board).context("the board's map")?;
+        let (planes, anchors) =
+            map.world.as_ref().map_or((0, 0), |w| (w.planes().len(), w.anchors().len()));
         return Ok(Ok(format!(
-            "the map in the board's flash image is the host's byte for byte ({records} keyframes, \
-             {} bytes as a map file)",
+            "the map in the board's flash image is the host's byte for byte ({} keyframes, \
+             {planes} planes, {anchors} anchors, {} bytes as a map file)",
+            map.records.len(),
             board.len()
         )));
     }
@@ -471,7 +475,8 @@ fn compare_saved_maps(out: &Path) -> Result<Result<String>> {
     )))
 }
 
-/// The map a boot on the flash image `image` finds, as a map file ([`ferroslam_core::persist`]).
+/// The map a boot on the flash image `image` finds, as a map file ([`ferroslam_core::persist`]):
+/// its records, then its planes and anchors when it holds them.
 pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
     let store = FlashStore::mount(SliceFlash::new(image))
         .map_err(|e| anyhow!("mounting the flash image: {e:?}"))?;
@@ -480,9 +485,12 @@ pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
     if memory.stats().store_errors > 0 {
         bail!("{} records in the flash image do not decode", memory.stats().store_errors);
     }
+    let saved = memory.held_world().transpose().map_err(|e| anyhow!("flash image: {e}"))?;
+    let parts = saved.as_ref().map(SavedWorld::restored);
+    let world = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
     let mut file = Vec::new();
     memory
-        .save(|b: &[u8]| -> Result<(), std::convert::Infallible> {
+        .save(world.as_ref(), |b: &[u8]| -> Result<(), std::convert::Infallible> {
             file.extend_from_slice(b);
             Ok(())
         })

@@ -96,6 +96,16 @@ impl Anchors {
         Self { items: Vec::new() }
     }
 
+    /// The anchors `saved` by an earlier run ([`super::SavedWorld`]), in their order: of the
+    /// remembered world, attached to no keyframe of this run's map, so no loop moves them.
+    pub fn restored(saved: &[Anchor]) -> Self {
+        let mut anchors = Self::new();
+        for &anchor in saved.iter().take(MAX_ANCHORS) {
+            let _ = anchors.items.push(Attached { anchor, keyframe: None });
+        }
+        anchors
+    }
+
     /// Applies `command`; `frame` is needed by [`AnchorCommand::Place`] only (`None`: the frame
     /// was not tracked, so a place fails with [`AnchorError::NotTracked`]). Returns the anchor
     /// as it is after the command (the removed one for a remove).

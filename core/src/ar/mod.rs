@@ -20,14 +20,16 @@
 //! Why these choices and thresholds, and what they measured: docs/decisions.md, "Planes from a
 //! grid of cells on depth". SLAM also finds planes as it runs, on the board as on a host
 //! ([`crate::system::OnlinePlanes`]), and places anchors on them (`Slam::command`: the commands a
-//! board receives on its serial link); planes and anchors saved with the map are to come (issue
-//! 49).
+//! board receives on its serial link).
+//! - [`World`] and [`SavedWorld`]: the planes and anchors saved with the map, after its place
+//!   records, and read back by the next run.
 
 mod anchor;
 mod anchors;
 mod eigen;
 mod plane_map;
 mod planes;
+mod world;
 
 pub use anchor::{Anchor, AnchorError};
 pub use anchors::{AnchorCommand, Anchors, PlacingFrame};
@@ -35,6 +37,7 @@ pub use plane_map::{MAX_MAP_PLANES, MapPlane, Observed, PlaneMap, PlaneMergePara
 pub use planes::{
     FramePlanes, MAX_FRAME_PLANES, PLANE_GRID, Plane, PlaneDetector, PlaneError, PlaneParams,
 };
+pub use world::{SavedWorld, WORLD_UNITS, World, WorldError, is_world_unit};
 
 #[cfg(test)]
 mod tests;

@@ -82,6 +82,18 @@ impl PlaneMap {
         Self { planes: Vec::new(), dropped: 0, track: 0 }
     }
 
+    /// A map of `planes` saved by an earlier run ([`super::SavedWorld`]): the remembered world,
+    /// an earlier track than the current one, so a loop moves this run's planes onto them and
+    /// never them.
+    pub fn restored(planes: &[MapPlane]) -> Self {
+        let mut map = Self::new();
+        for m in planes.iter().take(MAX_MAP_PLANES) {
+            let _ = map.planes.push(MapPlane { track: 0, ..*m });
+        }
+        map.track = 1;
+        map
+    }
+
     /// The planes kept, in the order they were added.
     pub fn planes(&self) -> &[MapPlane] {
         &self.planes

@@ -434,3 +434,111 @@ fn a_loop_correction_moves_the_anchors_of_the_active_map_only() {
     // The retired keyframe's anchor belongs to the remembered places: it stays.
     assert_eq!(anchors.get(2), Some(&kept));
 }
+
+/// A full world: [`MAX_MAP_PLANES`] planes of random orientation and [`MAX_ANCHORS`] anchors.
+fn full_world(rng: &mut TestRng) -> (PlaneMap, Anchors) {
+    use crate::config::capacity::MAX_ANCHORS;
+    let mut unit = || {
+        let v =
+            Vector3::new(rng.uniform_f32(-1.0, 1.0), rng.uniform_f32(-1.0, 1.0), 1.0).normalize();
+        [v.x, v.y, v.z]
+    };
+    let planes: std::vec::Vec<MapPlane> = (0..MAX_MAP_PLANES as u32)
+        .map(|k| {
+            let normal = unit();
+            MapPlane {
+                plane: Plane {
+                    normal,
+                    offset_m: 0.5 + k as f32 * 0.1,
+                    centroid: normal.map(|n| -n * (0.5 + k as f32 * 0.1)),
+                    rms_m: 0.002 * k as f32,
+                    cells: k as u16 * 3,
+                    samples: 1000 + k * 77,
+                },
+                observations: k as u16 + 1,
+                track: 0,
+            }
+        })
+        .collect();
+    let anchors: std::vec::Vec<Anchor> = (0..MAX_ANCHORS as u16)
+        .map(|object| Anchor {
+            object: object * 5,
+            p_w: [f32::from(object), -1.0, 2.5],
+            up_w: unit(),
+            scale: 0.25 * f32::from(object + 1),
+        })
+        .collect();
+    (PlaneMap::restored(&planes), Anchors::restored(&anchors))
+}
+
+/// The [`WORLD_UNITS`] units of `world`.
+fn units(world: &World<'_>) -> [crate::map::RecordBytes; WORLD_UNITS] {
+    let mut out = [[0; crate::config::capacity::PLACE_RECORD_BYTES]; WORLD_UNITS];
+    for (k, unit) in out.iter_mut().enumerate() {
+        world.encode(k, unit);
+    }
+    out
+}
+
+/// `units` taken in order, then checked whole.
+fn taken(units: &[crate::map::RecordBytes]) -> Result<SavedWorld, WorldError> {
+    let mut saved = SavedWorld::new();
+    for unit in units {
+        saved.take(unit)?;
+    }
+    saved.whole()
+}
+
+#[test]
+fn a_full_world_saves_and_reads_back_to_the_same_bits_and_bytes() {
+    let mut rng = TestRng::new(49);
+    let (planes, anchors) = full_world(&mut rng);
+    let bytes = units(&World { planes: &planes, anchors: &anchors });
+    let saved = taken(&bytes).unwrap();
+    assert_eq!(saved.planes(), planes.planes());
+    assert!(saved.anchors().iter().eq(anchors.iter()));
+    // Held again and saved again: the same bytes.
+    let (planes_again, anchors_again) = saved.restored();
+    assert_eq!(units(&World { planes: &planes_again, anchors: &anchors_again }), bytes);
+    // Restored planes are an earlier track than the run's: a loop moves none of them.
+    assert_eq!(planes_again.track(), 1);
+    // An empty world too.
+    let (none, no_anchors) = (PlaneMap::new(), Anchors::new());
+    let empty = taken(&units(&World { planes: &none, anchors: &no_anchors })).unwrap();
+    assert!(empty.planes().is_empty() && empty.anchors().is_empty());
+}
+
+#[test]
+fn world_units_that_are_not_as_written_are_refused_with_what_is_wrong() {
+    let mut rng = TestRng::new(50);
+    let (planes, anchors) = full_world(&mut rng);
+    let good = units(&World { planes: &planes, anchors: &anchors });
+    // Writes `value` at byte `at` of a unit and seals it again (its checksum made to match).
+    let changed = |unit: usize, at: usize, value: &[u8]| {
+        let mut bytes = good;
+        bytes[unit][at..at + value.len()].copy_from_slice(value);
+        crate::map::seal(&mut bytes[unit]);
+        bytes
+    };
+    let mut flipped = good;
+    flipped[1][100] ^= 1;
+    let cases: [(std::vec::Vec<crate::map::RecordBytes>, WorldError); 10] = [
+        (std::vec![good[1], good[0]], WorldError::Order(1)),
+        (std::vec![good[0]], WorldError::Incomplete),
+        (flipped.to_vec(), WorldError::Checksum),
+        (changed(0, 0, b"X").to_vec(), WorldError::NotAWorld),
+        (changed(0, 2, &[9]).to_vec(), WorldError::Version(9)),
+        (changed(0, 6, &[1]).to_vec(), WorldError::Padding),
+        // Unit 0 holding one plane fewer: the 25th's bytes are where nothing is written.
+        (changed(0, 4, &[24]).to_vec(), WorldError::Padding),
+        // More planes than unit 0 holds.
+        (changed(0, 4, &[26]).to_vec(), WorldError::Counts),
+        // A plane's normal x made NaN.
+        (changed(0, 8, &f32::NAN.to_le_bytes()).to_vec(), WorldError::Plane),
+        // Unit 1's first anchor given the object id of its second (5).
+        (changed(1, 8 + 7 * 40, &[5]).to_vec(), WorldError::Anchor),
+    ];
+    for (bytes, wrong) in cases {
+        assert_eq!(taken(&bytes).map(|_| ()), Err(wrong));
+    }
+}

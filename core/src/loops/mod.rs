@@ -33,6 +33,7 @@ mod tests;
 
 use heapless::Vec;
 
+use crate::ar::{SavedWorld, WORLD_UNITS, World, WorldError, is_world_unit};
 use crate::config::STORE_READ_TRIES;
 use crate::config::capacity::PLACE_POINTS;
 use crate::geometry::Pose;
@@ -40,7 +41,9 @@ use crate::map::{
     KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlaceKey, PlacePoint, PlaceRecord,
     RecordBytes,
 };
-use crate::persist::{MapFileError, MapHeader, RecordsChecksum, check_map_file, map_records};
+use crate::persist::{
+    MapFileError, MapHeader, RecordsChecksum, check_map_file, map_records, map_world,
+};
 use crate::pose::TrackingRng;
 use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
@@ -135,6 +138,9 @@ pub struct PlaceMemory<S> {
     frozen: bool,
     /// The creation number after every record's ([`Places::first_free_seq`]).
     next_seq: u32,
+    /// The first slot of the world units the store held when attached, until a record is
+    /// written over them ([`Self::held_world`]).
+    world_at: Option<usize>,
 }
 
 /// Why [`PlaceMemory::save`] stopped.
@@ -177,18 +183,29 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             pending: None,
             frozen: false,
             next_seq: 0,
+            world_at: None,
         }
     }
 
     /// Attaches the memory to `store` in place of its own, forgetting what it held, and takes the
-    /// records `store` held when opened (a flash region's last committed map) into its index. For
-    /// a memory made `const` in a `static` before its store exists, and for a boot. Cost: each
+    /// records `store` held when opened (a flash region's last committed map) into its index;
+    /// world units after them (a commit's [`World`]) are left for [`Self::held_world`]. For a
+    /// memory made `const` in a `static` before its store exists, and for a boot. Cost: each
     /// held record read once; one that does not decode is counted in
     /// [`PlaceStats::store_errors`] and kept in its slot, ranked last.
     pub fn attach(&mut self, store: S) {
         self.store = store;
         self.pending = None;
-        self.len = self.store.held().min(self.store.capacity()).min(INDEXED_RECORDS);
+        self.len = self.store.held().min(self.store.capacity());
+        self.world_at = None;
+        if let Some(at) = self.len.checked_sub(WORLD_UNITS)
+            && self.store.read(at, &mut self.buf).is_ok()
+            && is_world_unit(&self.buf)
+        {
+            self.len = at;
+            self.world_at = Some(at);
+        }
+        self.len = self.len.min(self.places_capacity());
         self.next_seq = 0;
         for slot in 0..self.len {
             match self.read(slot) {
@@ -202,42 +219,89 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         }
     }
 
-    /// Makes the records held the store's map as one step: on a flash store, what a boot finds
-    /// after a power cut ([`KeyframeStore::commit`]). A save on a board is
+    /// The planes and anchors the store held after its records when attached ([`Self::attach`]),
+    /// read and checked (`None`: it held none, or a record was written over them since). Read
+    /// them before the first frame. Cost: [`WORLD_UNITS`] reads; about 3 KiB of stack.
+    ///
+    /// # Errors
+    /// [`WorldError`]: what is wrong with them (a failed read is [`WorldError::Incomplete`]).
+    pub fn held_world(&mut self) -> Option<Result<SavedWorld, WorldError>> {
+        let at = self.world_at?;
+        self.write_pending();
+        let mut world = SavedWorld::new();
+        for slot in at..at + WORLD_UNITS {
+            if self.store.read(slot, &mut self.buf).is_err() {
+                return Some(Err(WorldError::Incomplete));
+            }
+            if let Err(e) = world.take(&self.buf) {
+                return Some(Err(e));
+            }
+        }
+        Some(world.whole())
+    }
+
+    /// Makes the records held, then `world`'s planes and anchors (in the [`WORLD_UNITS`] slots
+    /// after them), the store's map as one step: on a flash store, what a boot finds after a
+    /// power cut ([`KeyframeStore::commit`]). A save on a board is
     /// `MapAccess::remember_all_in` then this.
     ///
     /// # Errors
     /// The store's, counted in [`PlaceStats::store_errors`]; the last commit stands then.
-    pub fn commit(&mut self) -> Result<(), S::Error> {
+    pub fn commit(&mut self, world: Option<&World<'_>>) -> Result<(), S::Error> {
         self.write_pending();
-        let done = self.store.commit(self.len);
+        let mut slots = self.len;
+        if let Some(world) = world {
+            for unit in 0..WORLD_UNITS {
+                world.encode(unit, &mut self.buf);
+                if let Err(e) = self.store.write(slots, &self.buf) {
+                    self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+                    return Err(e);
+                }
+                slots += 1;
+            }
+            self.world_at = Some(self.len);
+        }
+        let done = self.store.commit(slots);
         if done.is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
         }
         done
     }
 
-    /// Writes the held records as a map file ([`crate::persist`]) through `write`, called with
-    /// the header's bytes, then each record's, in slot order. Cost: every record read twice (the
-    /// checksum first).
+    /// Writes the held records, then `world`'s planes and anchors, as a map file
+    /// ([`crate::persist`]) through `write`, called with the header's bytes, then each record's
+    /// in slot order, then each world unit's. Cost: every record read twice (the checksum
+    /// first), the world encoded twice.
     ///
     /// # Errors
     /// `write`'s first error; a record the store cannot read is a [`MapFileError::Record`]
     /// (wrapped in [`SaveError::Map`]).
     pub fn save<E>(
         &mut self,
+        world: Option<&World<'_>>,
         mut write: impl FnMut(&[u8]) -> Result<(), E>,
     ) -> Result<(), SaveError<E>> {
         self.write_pending();
         let mut checksum = RecordsChecksum::default();
+        let world_units = if world.is_some() { WORLD_UNITS } else { 0 };
         for pass in [false, true] {
             if pass {
-                let header = MapHeader { records: self.len as u32, checksum: checksum.value() };
+                let header = MapHeader {
+                    records: self.len as u32,
+                    world_units: world_units as u8,
+                    checksum: checksum.value(),
+                };
                 write(&header.encode()).map_err(SaveError::Write)?;
             }
-            for slot in 0..self.len {
-                if self.store.read(slot, &mut self.buf).is_err() {
-                    return Err(SaveError::Map(MapFileError::Record { index: slot as u32 }));
+            for slot in 0..self.len + world_units {
+                match world.filter(|_| slot >= self.len) {
+                    Some(w) => w.encode(slot - self.len, &mut self.buf),
+                    None => {
+                        if self.store.read(slot, &mut self.buf).is_err() {
+                            let index = slot as u32;
+                            return Err(SaveError::Map(MapFileError::Record { index }));
+                        }
+                    }
                 }
                 if pass {
                     write(&self.buf).map_err(SaveError::Write)?;
@@ -249,19 +313,22 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         Ok(())
     }
 
-    /// Replaces what the memory holds by the map file `file` ([`crate::persist`]): the header,
-    /// the length, the checksum and every record are checked first, and nothing is taken unless
-    /// all hold. Cost: every record decoded twice (checked, then indexed) and written to the
-    /// store once.
+    /// Replaces what the memory holds by the map file `file` ([`crate::persist`]) and returns the
+    /// planes and anchors it holds after its records (`None`: a file without them; give them to
+    /// `Slam::restore_world`). The header, the length, the checksum, every record and the world
+    /// are checked first, and nothing is taken unless all hold. Cost: every record decoded
+    /// twice (checked, then indexed) and written to the store once; the world decoded twice.
     ///
     /// # Errors
     /// What is wrong with the file ([`MapFileError`]); the memory is unchanged then. A store that
     /// fails a write is counted in [`PlaceStats::store_errors`] and keeps what was written.
-    pub fn load(&mut self, file: &[u8]) -> Result<(), MapFileError> {
-        check_map_file(file, self.store.capacity().min(INDEXED_RECORDS))?;
+    pub fn load(&mut self, file: &[u8]) -> Result<Option<SavedWorld>, MapFileError> {
+        check_map_file(file, self.places_capacity())?;
+        let world = map_world(file)?;
         self.pending = None;
         self.len = 0;
         self.next_seq = 0;
+        self.world_at = None;
         for r in map_records(file) {
             self.buf.copy_from_slice(r);
             let Ok(record) = PlaceRecord::decode(&self.buf) else { continue };
@@ -272,13 +339,19 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             self.index_record(self.len, &record);
             self.len += 1;
         }
-        Ok(())
+        Ok(world)
     }
 
     /// Stops (or resumes) remembering: keyframes leaving the map are not written to the store
     /// while frozen (localization in a loaded map adds nothing to it).
     pub fn freeze(&mut self, frozen: bool) {
         self.frozen = frozen;
+    }
+
+    /// Records the memory holds at most: the store's slots (up to [`INDEXED_RECORDS`]) but the
+    /// [`WORLD_UNITS`] a commit writes the world's planes and anchors to.
+    pub fn places_capacity(&self) -> usize {
+        self.store.capacity().min(INDEXED_RECORDS).saturating_sub(WORLD_UNITS)
     }
 
     /// Records held.
@@ -331,9 +404,11 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// Writes the record [`Places::remember`] left in `buf`, if any (counted in
     /// [`PlaceStats::store_errors`] when the store fails).
     fn write_pending(&mut self) {
-        if let Some(slot) = self.pending.take()
-            && self.store.write(slot, &self.buf).is_err()
-        {
+        let Some(slot) = self.pending.take() else { return };
+        if self.world_at.is_some_and(|at| (at..at + WORLD_UNITS).contains(&slot)) {
+            self.world_at = None;
+        }
+        if self.store.write(slot, &self.buf).is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);
         }
     }
@@ -343,8 +418,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// it), the one whose pose is nearest (translation in metres plus rotation in radians).
     /// Cost: a pass over the index and at most [`SHORTLIST`] record reads, however full.
     fn slot_for(&mut self, t_wc: &Pose, key: &PlaceKey) -> Option<usize> {
-        let capacity = self.store.capacity().min(INDEXED_RECORDS);
-        if self.len < capacity {
+        if self.len < self.places_capacity() {
             return Some(self.len);
         }
         let mut best: Option<(f32, usize)> = None;

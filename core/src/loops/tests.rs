@@ -210,7 +210,8 @@ fn two_places_that_verify_different_poses_are_ambiguous() {
 fn a_full_store_replaces_its_most_redundant_record() {
     let mut rng = TestRng::new(7);
     let place = scene(&mut rng, PLACE_POINTS);
-    let mut memory = PlaceMemory::new(RamStore::<2>::new(), 1);
+    // Two records (two slots more are kept for the world).
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 1);
     for x in [0.0, 2.0, 0.1] {
         let (map, kf) = map_with(&place, pose([x, 0.0, 0.0], [0.0; 3]));
         memory.remember(&map, kf);
@@ -343,8 +344,9 @@ impl<const N: usize> KeyframeStore for Counting<N> {
 fn a_full_store_reads_a_shortlist_to_thin_and_to_query() {
     let mut rng = TestRng::new(13);
     let place = scene(&mut rng, PLACE_POINTS);
-    let mut memory = PlaceMemory::new(Counting { store: RamStore::<64>::new(), reads: 0 }, 1);
-    // 64 records along a line, each with its own random key.
+    // 64 records (two slots more are kept for the world) along a line, each with its own random
+    // key.
+    let mut memory = PlaceMemory::new(Counting { store: RamStore::<66>::new(), reads: 0 }, 1);
     let key_of = |rng: &mut TestRng| {
         let mut key = PlaceKey::default();
         key.0.iter_mut().for_each(|k| *k = rng.next_u32() as u8);
@@ -370,7 +372,7 @@ fn a_full_store_reads_a_shortlist_to_thin_and_to_query() {
     memory.flush();
     let mut store = memory.store().clone();
     let mut buf = [0; PLACE_RECORD_BYTES];
-    let x = |store: &mut Counting<64>, buf: &mut RecordBytes, slot| {
+    let x = |store: &mut Counting<66>, buf: &mut RecordBytes, slot| {
         store.read(slot, buf).unwrap();
         PlaceRecord::decode(buf).unwrap().t_wc.translation.x
     };
@@ -402,9 +404,17 @@ fn three_records<const N: usize>(rng: &mut TestRng) -> PlaceMemory<RamStore<N>> 
 }
 
 fn saved<S: KeyframeStore>(memory: &mut PlaceMemory<S>) -> std::vec::Vec<u8> {
+    saved_with(memory, None)
+}
+
+/// The map file `memory` saves, with `world` after its records.
+fn saved_with<S: KeyframeStore>(
+    memory: &mut PlaceMemory<S>,
+    world: Option<&crate::ar::World<'_>>,
+) -> std::vec::Vec<u8> {
     let mut file = std::vec::Vec::new();
     memory
-        .save(|b: &[u8]| -> Result<(), ()> {
+        .save(world, |b: &[u8]| -> Result<(), ()> {
             file.extend_from_slice(b);
             Ok(())
         })
@@ -435,9 +445,10 @@ fn a_damaged_map_file_is_refused_whole_with_what_is_wrong() {
     let mut rng = TestRng::new(15);
     let file = saved(&mut three_records::<8>(&mut rng));
     // A memory that holds something already keeps it when a load fails.
-    let mut memory = three_records::<4>(&mut rng);
+    let mut memory = three_records::<6>(&mut rng);
     let before = saved(&mut memory);
-    let mut small = three_records::<2>(&mut rng);
+    // Two slots of four: the other two are kept for the world's planes and anchors.
+    let mut small = three_records::<4>(&mut rng);
     let small_before = saved(&mut small);
     let err = small.load(&file).unwrap_err();
     assert_eq!(err, crate::persist::MapFileError::TooManyRecords { records: 3, capacity: 2 });
@@ -486,11 +497,109 @@ fn a_map_committed_to_flash_is_what_the_next_boot_holds() {
     let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
     booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
     assert!(booted.is_empty());
-    memory.commit().unwrap();
+    memory.commit(None).unwrap();
     let mut copy = memory.store().flash().bytes().to_vec();
     let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
     booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
     assert!(booted.holds_places() && booted.len() == 3);
     assert_eq!(saved(&mut booted), file, "the boot's map is the committed one, byte for byte");
     assert_eq!(booted.stats().store_errors, 0);
+}
+
+/// Two planes (a floor and a wall) and two objects on them: a world to save.
+fn a_world() -> (crate::ar::PlaneMap, crate::ar::Anchors) {
+    use crate::ar::{Anchor, Anchors, MapPlane, Plane, PlaneMap};
+    let plane = |normal: [f32; 3], offset_m: f32, samples: u32| MapPlane {
+        plane: Plane {
+            normal,
+            offset_m,
+            centroid: normal.map(|n| -n * offset_m),
+            rms_m: 0.004,
+            cells: 40,
+            samples,
+        },
+        observations: 3,
+        track: 0,
+    };
+    let planes = PlaneMap::restored(&[
+        plane([0.0, -1.0, 0.0], 1.2, 9000),
+        plane([0.0, 0.0, -1.0], 3.0, 5000),
+    ]);
+    let anchor =
+        |object: u16, p_w: [f32; 3], up_w: [f32; 3]| Anchor { object, p_w, up_w, scale: 1.5 };
+    let anchors = Anchors::restored(&[
+        anchor(7, [0.2, 1.2, 2.0], [0.0, -1.0, 0.0]),
+        anchor(3, [-0.4, 0.1, 3.0], [0.0, 0.0, -1.0]),
+    ]);
+    (planes, anchors)
+}
+
+#[test]
+fn the_world_is_saved_and_committed_after_the_records_and_read_back_whole() {
+    use crate::ar::World;
+    use crate::persist::{FlashStore, SliceFlash, flash_bytes_for};
+    let (planes, anchors) = a_world();
+    let world = World { planes: &planes, anchors: &anchors };
+    let mut rng = TestRng::new(17);
+    let mut memory = three_records::<8>(&mut rng);
+    let file = saved_with(&mut memory, Some(&world));
+    assert_eq!(file.len(), crate::persist::MAP_HEADER_BYTES + 5 * PLACE_RECORD_BYTES);
+    // A file: loaded, its world given back whole.
+    let mut loaded = PlaceMemory::new(RamStore::<8>::new(), 1);
+    let back = loaded.load(&file).unwrap().unwrap();
+    assert_eq!(loaded.len(), 3);
+    let planes_back: std::vec::Vec<_> = back.planes().iter().map(|m| m.plane).collect();
+    let planes_saved: std::vec::Vec<_> = planes.planes().iter().map(|m| m.plane).collect();
+    assert_eq!(planes_back, planes_saved);
+    assert!(back.anchors().iter().eq(anchors.iter()));
+    // Flash: committed with the world, a boot finds the records and the world.
+    let mut image = std::vec![0xFF; flash_bytes_for(8)];
+    let mut memory = PlaceMemory::new(FlashStore::mount(SliceFlash::new(&mut image)).unwrap(), 1);
+    memory.load(&file).unwrap();
+    memory.commit(Some(&world)).unwrap();
+    let mut copy = memory.store().flash().bytes().to_vec();
+    let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
+    assert_eq!((booted.len(), booted.stats().store_errors), (3, 0));
+    let held = booted.held_world().unwrap().unwrap();
+    assert_eq!(held, back, "the boot's world is the committed one");
+    // A bit flipped in a world unit on the flash: the boot takes the records and refuses the
+    // world.
+    let mut flipped = memory.store().flash().bytes().to_vec();
+    let at = flipped
+        .chunks(PLACE_RECORD_BYTES)
+        .position(|u| crate::ar::is_world_unit(u.try_into().unwrap()))
+        .unwrap();
+    flipped[at * PLACE_RECORD_BYTES + 40] ^= 0x02;
+    let mut damaged = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    damaged.attach(FlashStore::mount(SliceFlash::new(&mut flipped)).unwrap());
+    assert_eq!(damaged.len(), 3);
+    assert_eq!(damaged.held_world(), Some(Err(crate::ar::WorldError::Checksum)));
+    // A record remembered over the world's first slot: it is no longer there to read.
+    let (map, kf) = map_with(&scene(&mut rng, PLACE_POINTS), Pose::identity());
+    booted.remember(&map, kf);
+    booted.flush();
+    assert_eq!(booted.len(), 4);
+    assert!(booted.held_world().is_none());
+}
+
+#[test]
+fn a_damaged_world_is_refused_with_the_file() {
+    use crate::ar::World;
+    use crate::persist::{MAP_HEADER_BYTES, MapFileError, RecordsChecksum};
+    let (planes, anchors) = a_world();
+    let world = World { planes: &planes, anchors: &anchors };
+    let mut rng = TestRng::new(18);
+    let mut memory = three_records::<8>(&mut rng);
+    let mut file = saved_with(&mut memory, Some(&world));
+    // A bit flipped in the second world unit, the file's checksum made to match: the unit's own
+    // checksum refuses it.
+    let h = MAP_HEADER_BYTES;
+    file[h + 4 * PLACE_RECORD_BYTES + 20] ^= 0x10;
+    let mut sum = RecordsChecksum::default();
+    file[h..].chunks(PLACE_RECORD_BYTES).for_each(|r| sum.add(r));
+    file[h - 4..h].copy_from_slice(&sum.value().to_le_bytes());
+    let mut loaded = PlaceMemory::new(RamStore::<8>::new(), 1);
+    assert_eq!(loaded.load(&file), Err(MapFileError::World(crate::ar::WorldError::Checksum)));
+    assert!(loaded.is_empty(), "nothing half loaded");
 }

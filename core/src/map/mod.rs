@@ -45,6 +45,7 @@ pub use place::{
     Fnv1a, KEY_BITS_WORDS, KeyBits, KeyframeStore, NoStore, PLACE_KEY_CELLS, PlaceKey, PlacePoint,
     PlaceRecord, RamStore, RecordBytes, RecordError, SlotOutOfRange,
 };
+pub(crate) use place::{Get, Put, is_sealed, seal};
 
 use crate::config::{BOARD_MAP, HOST_MAP, capacity};
 use crate::features::Descriptor;

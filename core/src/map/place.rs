@@ -210,14 +210,14 @@ fn fnv1a(bytes: &[u8]) -> u32 {
     h.value()
 }
 
-/// A writer of little-endian fields into a record.
-struct Put<'a> {
-    buf: &'a mut RecordBytes,
-    at: usize,
+/// A writer of little-endian fields into a record (nothing past its end).
+pub(crate) struct Put<'a> {
+    pub(crate) buf: &'a mut RecordBytes,
+    pub(crate) at: usize,
 }
 
 impl Put<'_> {
-    fn bytes(&mut self, b: &[u8]) {
+    pub(crate) fn bytes(&mut self, b: &[u8]) {
         if let Some(dst) = self.buf.get_mut(self.at..self.at + b.len()) {
             dst.copy_from_slice(b);
         }
@@ -226,13 +226,13 @@ impl Put<'_> {
 }
 
 /// A reader of little-endian fields from a record (zeros past its end).
-struct Get<'a> {
-    buf: &'a RecordBytes,
-    at: usize,
+pub(crate) struct Get<'a> {
+    pub(crate) buf: &'a RecordBytes,
+    pub(crate) at: usize,
 }
 
 impl Get<'_> {
-    fn take<const N: usize>(&mut self) -> [u8; N] {
+    pub(crate) fn take<const N: usize>(&mut self) -> [u8; N] {
         let mut out = [0; N];
         if let Some(src) = self.buf.get(self.at..self.at + N) {
             out.copy_from_slice(src);
@@ -241,9 +241,26 @@ impl Get<'_> {
         out
     }
 
-    fn f32(&mut self) -> f32 {
+    pub(crate) fn f32(&mut self) -> f32 {
         f32::from_le_bytes(self.take())
     }
+}
+
+/// Writes the checksum of `buf`'s bytes before its last four into them: what closes a record
+/// (and a world unit, `ar::world`).
+pub(crate) fn seal(buf: &mut RecordBytes) {
+    let sum = fnv1a(buf.get(..CHECKSUM_AT).unwrap_or(&[]));
+    if let Some(dst) = buf.get_mut(CHECKSUM_AT..) {
+        dst.copy_from_slice(&sum.to_le_bytes());
+    }
+}
+
+/// Whether `buf`'s last four bytes are the checksum of the bytes before them ([`seal`]).
+pub(crate) fn is_sealed(buf: &RecordBytes) -> bool {
+    let stored = u32::from_le_bytes(
+        buf.get(CHECKSUM_AT..).and_then(|s| s.try_into().ok()).unwrap_or([0; 4]),
+    );
+    stored == fnv1a(buf.get(..CHECKSUM_AT).unwrap_or(&[]))
 }
 
 impl PlaceRecord {
@@ -270,10 +287,7 @@ impl PlaceRecord {
             }
             w.bytes(&p.descriptor.0.to_le_bytes());
         }
-        let sum = fnv1a(buf.get(..CHECKSUM_AT).unwrap_or(&[]));
-        if let Some(dst) = buf.get_mut(CHECKSUM_AT..) {
-            dst.copy_from_slice(&sum.to_le_bytes());
-        }
+        seal(buf);
     }
 
     /// The record in `buf`.
@@ -290,12 +304,7 @@ impl PlaceRecord {
         if version != VERSION {
             return Err(RecordError::Version(version));
         }
-        let stored = u32::from_le_bytes(
-            buf.get(CHECKSUM_AT..).and_then(|s| s.try_into().ok()).unwrap_or([0; 4]),
-        );
-        if stored != fnv1a(buf.get(..CHECKSUM_AT).unwrap_or(&[]))
-            || usize::from(count) > PLACE_POINTS
-        {
+        if !is_sealed(buf) || usize::from(count) > PLACE_POINTS {
             return Err(RecordError::Corrupt);
         }
         let seq = u32::from_le_bytes(r.take());

@@ -1,17 +1,22 @@
 //! The map file: the long-term store's records ([`crate::map::PlaceRecord`], 1 KiB each) behind
-//! a 20-byte header, so a map saved by one run can be loaded by the next.
+//! a 20-byte header, then the world's planes and anchors ([`crate::ar::World`], in
+//! [`WORLD_UNITS`] units of a record's size), so a map saved by one run can be loaded by the
+//! next.
 //!
 //! Layout (little-endian): `FSMP` (4 bytes), format version (1); the record layout the writer's
 //! capacities gave: verification points per record (1), place key width and height in cells
-//! (1 + 1), bytes per record (2), 0 (2); records (4), FNV-1a checksum of every record's bytes
-//! (4); then the records, each as the store holds it (with its own checksum). A reader checks the header before it takes any record and
-//! every record before the map is used, so a file from another format, truncated or with one bit
-//! flipped is refused whole, with an error that names what is wrong ([`MapFileError`]).
+//! (1 + 1), bytes per record (2); world units after the records (1: 0 or [`WORLD_UNITS`]), 0
+//! (1); records (4), FNV-1a checksum of every record's and world unit's bytes (4); then the
+//! records, each as the store holds it (with its own checksum), then the world units. A reader
+//! checks the header before it takes any record and every record and world unit before the map
+//! is used, so a file from another format, truncated or with one bit flipped is refused whole,
+//! with an error that names what is wrong ([`MapFileError`]). Version 2 files (no world: the
+//! byte was reserved, 0) are read as maps without planes or anchors.
 //!
 //! On a board the same records live in a NOR flash region ([`FlashStore`]): written as the map
 //! grows, made the map a boot finds by a commit, safe against a power cut at any write, on flash
 //! that erases a record at a time (the QEMU board's region) or large sectors (the reference
-//! board's 128 KiB).
+//! board's 128 KiB). The world units are its last slots.
 
 use core::fmt;
 
@@ -29,14 +34,19 @@ pub use flash::{
 };
 pub use slice_flash::{SECTOR_BYTES, SliceFlash, SliceFlashError};
 
+use crate::ar::{SavedWorld, WORLD_UNITS, WorldError};
 use crate::config::capacity::{PLACE_KEY_H, PLACE_KEY_W, PLACE_POINTS, PLACE_RECORD_BYTES};
-use crate::map::{Fnv1a, PlaceRecord};
+use crate::map::{Fnv1a, PlaceRecord, RecordBytes};
 
 /// The file's first bytes.
 pub const MAP_MAGIC: [u8; 4] = *b"FSMP";
 
-/// The format version this build writes and reads (1: a 16-byte header without the layout).
-pub const MAP_VERSION: u8 = 2;
+/// The format version this build writes (1: a 16-byte header without the layout; 2: no world
+/// units, still read).
+pub const MAP_VERSION: u8 = 3;
+
+/// The oldest format version this build reads.
+pub const MAP_OLDEST_VERSION: u8 = 2;
 
 /// Bytes of the header before the records.
 pub const MAP_HEADER_BYTES: usize = 20;
@@ -67,12 +77,14 @@ impl fmt::Display for RecordLayout {
     }
 }
 
-/// A map file's header: how many records follow and their checksum.
+/// A map file's header: how many records and world units follow and their checksum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MapHeader {
     /// Records after the header.
     pub records: u32,
-    /// FNV-1a of the records' bytes, in order ([`RecordsChecksum`]).
+    /// World units after the records: 0 or [`WORLD_UNITS`].
+    pub world_units: u8,
+    /// FNV-1a of the records' and world units' bytes, in order ([`RecordsChecksum`]).
     pub checksum: u32,
 }
 
@@ -87,7 +99,7 @@ impl MapHeader {
             &[l.points],
             &l.key,
             &l.record_bytes.to_le_bytes(),
-            &[0, 0],
+            &[self.world_units, 0],
             &self.records.to_le_bytes(),
             &self.checksum.to_le_bytes(),
         ];
@@ -105,8 +117,9 @@ impl MapHeader {
     ///
     /// # Errors
     /// [`MapFileError::Truncated`], [`MapFileError::NotAMap`], [`MapFileError::Version`] or
-    /// [`MapFileError::Layout`] or [`MapFileError::Reserved`]; the magic and the version are checked first, so a file of
-    /// another version is named as such even when shorter than this version's header.
+    /// [`MapFileError::Layout`], [`MapFileError::Reserved`] or [`MapFileError::WorldUnits`]; the
+    /// magic and the version are checked first, so a file of another version is named as such
+    /// even when shorter than this version's header.
     pub fn decode(bytes: &[u8]) -> Result<Self, MapFileError> {
         let byte = |at: usize| bytes.get(at).copied().unwrap_or(0);
         let word =
@@ -114,7 +127,7 @@ impl MapHeader {
         if bytes.len() >= 4 && bytes.get(..4) != Some(&MAP_MAGIC[..]) {
             return Err(MapFileError::NotAMap);
         }
-        if bytes.len() > 4 && byte(4) != MAP_VERSION {
+        if bytes.len() > 4 && !(MAP_OLDEST_VERSION..=MAP_VERSION).contains(&byte(4)) {
             return Err(MapFileError::Version(byte(4)));
         }
         if bytes.len() < MAP_HEADER_BYTES {
@@ -128,15 +141,20 @@ impl MapHeader {
         if layout != MAP_LAYOUT {
             return Err(MapFileError::Layout(layout));
         }
-        if byte(10) != 0 || byte(11) != 0 {
-            return Err(MapFileError::Reserved([byte(10), byte(11)]));
+        let (version, world_units) = (byte(4), byte(10));
+        if byte(11) != 0 || (version < 3 && world_units != 0) {
+            return Err(MapFileError::Reserved([world_units, byte(11)]));
         }
-        Ok(Self { records: word(12), checksum: word(16) })
+        if world_units != 0 && usize::from(world_units) != WORLD_UNITS {
+            return Err(MapFileError::WorldUnits(world_units));
+        }
+        Ok(Self { records: word(12), world_units, checksum: word(16) })
     }
 
     /// Bytes of the whole file this header describes.
     pub fn file_bytes(&self) -> usize {
-        MAP_HEADER_BYTES + self.records as usize * PLACE_RECORD_BYTES
+        let units = self.records as usize + usize::from(self.world_units);
+        MAP_HEADER_BYTES + units * PLACE_RECORD_BYTES
     }
 }
 
@@ -145,8 +163,8 @@ impl MapHeader {
 pub type RecordsChecksum = Fnv1a;
 
 /// Checks the map file `file` whole, for a store of `capacity` records: the header, the length,
-/// the record count, the checksum over the records, then every record. Cost: every record
-/// hashed once and decoded once.
+/// the record count, the checksum over the records and world units, then every record and the
+/// world. Cost: every unit hashed once and decoded once.
 ///
 /// # Errors
 /// The first check that fails.
@@ -163,7 +181,7 @@ pub fn check_map_file(file: &[u8], capacity: usize) -> Result<MapHeader, MapFile
         return Err(MapFileError::TooManyRecords { records: header.records, capacity });
     }
     let mut checksum = RecordsChecksum::default();
-    map_records(file).for_each(|r| checksum.add(r));
+    map_units(file).for_each(|r| checksum.add(r));
     if checksum.value() != header.checksum {
         return Err(MapFileError::Checksum { stored: header.checksum, computed: checksum.value() });
     }
@@ -174,12 +192,38 @@ pub fn check_map_file(file: &[u8], capacity: usize) -> Result<MapHeader, MapFile
             return Err(MapFileError::Record { index });
         }
     }
+    map_world(file)?;
     Ok(header)
 }
 
-/// The records' bytes of a map file, in order (after [`check_map_file`]: every one decodes).
-pub fn map_records(file: &[u8]) -> core::slice::ChunksExact<'_, u8> {
+/// Every unit after a map file's header: its records, then its world units.
+fn map_units(file: &[u8]) -> core::slice::ChunksExact<'_, u8> {
     file.get(MAP_HEADER_BYTES..).unwrap_or(&[]).chunks_exact(PLACE_RECORD_BYTES)
+}
+
+/// The records' bytes of a map file, in order (after [`check_map_file`]: every one decodes).
+pub fn map_records(file: &[u8]) -> core::iter::Take<core::slice::ChunksExact<'_, u8>> {
+    let records = MapHeader::decode(file).map_or(0, |h| h.records as usize);
+    map_units(file).take(records)
+}
+
+/// The planes and anchors a map file holds after its records (`None`: a file without them).
+/// Cost: each world unit decoded once; about 1.6 KiB on the caller's stack.
+///
+/// # Errors
+/// [`MapFileError::World`]: a world unit does not decode (or the header cannot be read).
+pub fn map_world(file: &[u8]) -> Result<Option<SavedWorld>, MapFileError> {
+    let header = MapHeader::decode(file)?;
+    if header.world_units == 0 {
+        return Ok(None);
+    }
+    let mut world = SavedWorld::new();
+    let mut buf: RecordBytes = [0; PLACE_RECORD_BYTES];
+    for unit in map_units(file).skip(header.records as usize) {
+        buf.copy_from_slice(unit);
+        world.take(&buf).map_err(MapFileError::World)?;
+    }
+    world.whole().map(Some).map_err(MapFileError::World)
 }
 
 /// Why a map file cannot be loaded; nothing of it is loaded then.
@@ -207,8 +251,13 @@ pub enum MapFileError {
     Version(u8),
     /// Records of another layout: a build with other capacities wrote it (its layout).
     Layout(RecordLayout),
-    /// The header's reserved bytes (10 and 11) are not zero: not a file this build wrote.
+    /// The header's reserved bytes (10 and 11 in version 2, 11 in version 3) are not zero: not a
+    /// file this build wrote.
     Reserved([u8; 2]),
+    /// The header states a number of world units other than 0 and [`WORLD_UNITS`].
+    WorldUnits(u8),
+    /// The world's planes and anchors after the records do not decode.
+    World(WorldError),
     /// The records' checksum does not match the header's: bytes changed since it was written.
     Checksum {
         /// The header's.
@@ -240,13 +289,19 @@ impl fmt::Display for MapFileError {
                 write!(f, "{found} bytes where the header says {expected}: trailing bytes")
             }
             Self::NotAMap => write!(f, "not a ferroslam map file (no FSMP magic)"),
-            Self::Version(v) => {
-                write!(f, "map format version {v}; this build reads version {MAP_VERSION}")
-            }
+            Self::Version(v) => write!(
+                f,
+                "map format version {v}; this build reads versions {MAP_OLDEST_VERSION} to \
+                 {MAP_VERSION}"
+            ),
             Self::Reserved(b) => write!(
                 f,
                 "reserved header bytes {b:?} are not zero: not a map file this build wrote"
             ),
+            Self::WorldUnits(n) => {
+                write!(f, "{n} world units; a map has 0 or {WORLD_UNITS}")
+            }
+            Self::World(e) => write!(f, "planes and anchors: {e}"),
             Self::Layout(l) => write!(
                 f,
                 "written by a build with other capacities: {l}; this build's are {MAP_LAYOUT}"

@@ -9,12 +9,16 @@ use super::*;
 
 #[test]
 fn a_header_round_trips_and_a_wrong_one_says_what_is_wrong() {
-    let h = MapHeader { records: 300, checksum: 0xDEAD_BEEF };
+    let h = MapHeader { records: 300, world_units: 2, checksum: 0xDEAD_BEEF };
     let bytes = h.encode();
     assert_eq!(&bytes[..4], b"FSMP");
-    assert_eq!(&bytes[4..10], &[2, 48, 16, 12, 0, 4], "version, points, key, record bytes");
+    assert_eq!(
+        &bytes[4..12],
+        &[3, 48, 16, 12, 0, 4, 2, 0],
+        "version, points, key, record bytes, world"
+    );
     assert_eq!(MapHeader::decode(&bytes), Ok(h));
-    assert_eq!(h.file_bytes(), 20 + 300 * 1024);
+    assert_eq!(h.file_bytes(), 20 + 302 * 1024);
     assert_eq!(
         MapHeader::decode(&bytes[..10]),
         Err(MapFileError::Truncated { expected: 20, found: 10 })
@@ -32,8 +36,17 @@ fn a_header_round_trips_and_a_wrong_one_says_what_is_wrong() {
     let layout = RecordLayout { record_bytes: 512, points: 32, key: [16, 12] };
     assert_eq!(MapHeader::decode(&other), Err(MapFileError::Layout(layout)));
     let mut other = bytes;
-    other[10] = 0x15;
-    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Reserved([0x15, 0])));
+    other[11] = 0x15;
+    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Reserved([2, 0x15])));
+    let mut other = bytes;
+    other[10] = 1;
+    assert_eq!(MapHeader::decode(&other), Err(MapFileError::WorldUnits(1)));
+    // Version 2 had no world: its byte 10 was reserved.
+    let mut other = bytes;
+    other[4] = 2;
+    assert_eq!(MapHeader::decode(&other), Err(MapFileError::Reserved([2, 0])));
+    other[10] = 0;
+    assert_eq!(MapHeader::decode(&other), Ok(MapHeader { world_units: 0, ..h }));
     assert_eq!(
         MapFileError::Layout(layout).to_string(),
         "written by a build with other capacities: records of 512 bytes, 32 points, a 16 x 12 \

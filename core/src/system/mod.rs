@@ -25,7 +25,7 @@ mod planes;
 mod profile;
 mod telemetry;
 
-use crate::ar::{Anchor, AnchorCommand, AnchorError, Anchors, PlacingFrame};
+use crate::ar::{Anchor, AnchorCommand, AnchorError, Anchors, PlacingFrame, SavedWorld, World};
 use crate::backend::{BackendError, BackendParams, BackendStatus};
 use crate::frame::RgbdFrame;
 use crate::geometry::PinholeCamera;
@@ -234,6 +234,21 @@ impl<P: ProfileTypes> Slam<P> {
     /// The virtual objects placed ([`Self::command`]), in the world frame.
     pub fn anchors(&self) -> &Anchors {
         &self.anchors
+    }
+
+    /// The planes and anchors as a map saves them (`PlaceMemory::save`, `PlaceMemory::commit`).
+    pub fn world(&self) -> World<'_> {
+        World { planes: self.planes.map(), anchors: &self.anchors }
+    }
+
+    /// Takes the planes and anchors a saved map held (`PlaceMemory::load`,
+    /// `PlaceMemory::held_world`) in place of its own: the remembered world, which this run's
+    /// loops move its own planes and anchors onto. For a system switched on in a loaded map,
+    /// before its first frame.
+    pub fn restore_world(&mut self, saved: &SavedWorld) {
+        let (planes, anchors) = saved.restored();
+        self.planes.restore(planes);
+        self.anchors = anchors;
     }
 
     /// Applies an anchor `command` in `frame`, the frame the last [`Self::process_with`] took

@@ -50,6 +50,11 @@ impl OnlinePlanes {
         &self.map
     }
 
+    /// Starts again from `map`, the planes a saved map held ([`PlaneMap::restored`]), none due.
+    pub(super) fn restore(&mut self, map: PlaneMap) {
+        *self = Self { map, ..Self::new() };
+    }
+
     /// The world's planes in the frame of a camera at `t_wc` (camera to world), in the order
     /// kept: what an anchor placed in that camera's frame stands on. Cost: one transform per
     /// plane; about 1.3 KB on the caller's stack.

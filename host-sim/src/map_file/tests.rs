@@ -50,19 +50,60 @@ fn a_map_reads_back_and_its_figures_are_the_records() {
     assert_eq!(e.size(), [2.0, 0.0, 0.0]);
     let text = s.to_string();
     for line in [
-        "format: version 2, 20-byte header, records of 1024 bytes, 48 points, a 16 x 12 key",
+        "format: version 3, 20-byte header, records of 1024 bytes, 48 points, a 16 x 12 key",
         "file: 3092 bytes",
         "keyframes: 3",
         "verification points: 55 (per keyframe: min 2, median 5, max 48)",
         "segments: not stored in this format",
+        "planes and anchors: not in this file",
         "timestamps: 10.000000 s to 12.500000 s (2.500 s)",
         "x -0.500 to 1.500, y 0.000 to 0.000, z 0.000 to 0.000 (extent 2.000 x 0.000 x 0.000)",
     ] {
         assert!(text.contains(line), "{line:?} in {text}");
     }
-    assert!(
-        text.contains(&format!("checksum: {:#010x} (FNV-1a of the records: matches)", s.checksum))
-    );
+    assert!(text.contains(&format!(
+        "checksum: {:#010x} (FNV-1a of the records and world: matches)",
+        s.checksum
+    )));
+    // The same file as version 2 wrote it (no world: its byte 10 was reserved) reads the same.
+    let mut older = bytes.clone();
+    older[4] = 2;
+    let map = MapFile::from_bytes(&older).unwrap();
+    assert_eq!((map.version, map.records.len(), map.world.is_none()), (2, 3, true));
+    assert!(map.summary().to_string().contains("format: version 2, "));
+}
+
+#[test]
+fn a_map_with_planes_and_anchors_says_so_and_writes_them_back() {
+    use ferroslam_core::ar::{Anchor, Anchors, MapPlane, Plane, PlaneMap, World};
+    use ferroslam_core::loops::PlaceMemory;
+    use ferroslam_core::map::RamStore;
+    let floor = Plane {
+        normal: [0.0, -1.0, 0.0],
+        offset_m: 1.2,
+        centroid: [0.3, 1.2, 2.0],
+        rms_m: 0.003,
+        cells: 50,
+        samples: 8000,
+    };
+    let planes = PlaneMap::restored(&[MapPlane { plane: floor, observations: 4, track: 0 }]);
+    let cup = Anchor { object: 2, p_w: [0.3, 1.2, 2.0], up_w: [0.0, -1.0, 0.0], scale: 0.5 };
+    let anchors = Anchors::restored(&[cup]);
+    let mut memory = PlaceMemory::new(RamStore::<8>::new(), 1);
+    let mut bytes = Vec::new();
+    memory
+        .save(Some(&World { planes: &planes, anchors: &anchors }), |b: &[u8]| {
+            bytes.extend_from_slice(b);
+            Ok::<(), ()>(())
+        })
+        .unwrap();
+    let map = MapFile::from_bytes(&bytes).unwrap();
+    let world = map.world.as_ref().unwrap();
+    assert_eq!((world.planes()[0].plane, world.anchors()), (floor, &[cup][..]));
+    assert_eq!(map.to_bytes(), bytes, "written back byte for byte");
+    let s = map.summary();
+    assert_eq!((s.keyframes, s.planes, s.anchors), (0, Some(1), Some(1)));
+    assert!(s.to_string().contains("planes: 1, anchors: 1"));
 }
 
 #[test]
@@ -149,13 +190,14 @@ fn a_damaged_or_foreign_file_says_what_is_wrong() {
         .fill(0);
     let mut checksum = RecordsChecksum::default();
     checksum.add(&erased[MAP_HEADER_BYTES..]);
-    erased[..MAP_HEADER_BYTES]
-        .copy_from_slice(&MapHeader { records: 3, checksum: checksum.value() }.encode());
+    erased[..MAP_HEADER_BYTES].copy_from_slice(
+        &MapHeader { records: 3, world_units: 0, checksum: checksum.value() }.encode(),
+    );
     assert_eq!(fault(&erased), "record 1 does not decode: the slot holds no record");
 
     // More records than the host's store takes on --load-map.
     let records = MAX_MAP_RECORDS as u32 + 1;
-    let mut many = MapHeader { records, checksum: 0 }.encode().to_vec();
+    let mut many = MapHeader { records, world_units: 0, checksum: 0 }.encode().to_vec();
     many.resize(MAP_HEADER_BYTES + records as usize * PLACE_RECORD_BYTES, 0);
     assert_eq!(fault(&many), format!("{records} records, more than the store's {MAX_MAP_RECORDS}"));
 }

@@ -205,8 +205,13 @@ impl<P: ProfileTypes> Stepper<'_, P> {
     }
 }
 
-/// Loads `maps.load` into the run's place memory (frozen when `maps.localize`).
-fn load_map(memory: &mut RunPlaces, maps: &MapFiles) -> Result<()> {
+/// Loads `maps.load` into the run's place memory (frozen when `maps.localize`), and the planes and
+/// anchors it holds into `slam`.
+fn load_map<P: ProfileTypes>(
+    memory: &mut RunPlaces,
+    slam: &mut Slam<P>,
+    maps: &MapFiles,
+) -> Result<()> {
     let RunPlaces::On(m) = memory else {
         if maps.load.is_some() || maps.save.is_some() || maps.localize {
             bail!("map files need the place memory: drop --no-places");
@@ -216,8 +221,20 @@ fn load_map(memory: &mut RunPlaces, maps: &MapFiles) -> Result<()> {
     if let Some(path) = &maps.load {
         let bytes =
             std::fs::read(path).with_context(|| format!("reading map {}", path.display()))?;
-        m.load(&bytes).map_err(|e| anyhow!("map {}: {e}; nothing loaded", path.display()))?;
-        eprintln!("map: {} keyframes loaded from {}", m.len(), path.display());
+        let world =
+            m.load(&bytes).map_err(|e| anyhow!("map {}: {e}; nothing loaded", path.display()))?;
+        let (planes, anchors) = match &world {
+            Some(w) => (w.planes().len(), w.anchors().len()),
+            None => (0, 0),
+        };
+        if let Some(w) = &world {
+            slam.restore_world(w);
+        }
+        eprintln!(
+            "map: {} keyframes, {planes} planes and {anchors} anchors loaded from {}",
+            m.len(),
+            path.display()
+        );
     } else if maps.localize {
         bail!("--localize needs a map to localize in (--load-map FILE)");
     }
@@ -225,19 +242,32 @@ fn load_map(memory: &mut RunPlaces, maps: &MapFiles) -> Result<()> {
     Ok(())
 }
 
-/// Saves the run's place memory to `maps.save`, with the active `map`'s keyframes remembered
-/// first (oldest first) unless localizing (the saved map is then the loaded one).
-fn save_map<M: MapAccess>(memory: &mut RunPlaces, map: &M, maps: &MapFiles) -> Result<()> {
+/// Saves the run's place memory to `maps.save`, with the active map's keyframes remembered
+/// first (oldest first) unless localizing (the saved map is then the loaded one), and `slam`'s
+/// planes and anchors after them.
+fn save_map<P: ProfileTypes>(
+    memory: &mut RunPlaces,
+    slam: &Slam<P>,
+    maps: &MapFiles,
+) -> Result<()> {
     let (RunPlaces::On(m), Some(path)) = (memory, &maps.save) else { return Ok(()) };
-    map.remember_all_in(m.as_mut());
+    slam.map().remember_all_in(m.as_mut());
+    let world = slam.world();
     let mut file = Vec::new();
-    m.save(|b: &[u8]| -> Result<(), std::convert::Infallible> {
+    m.save(Some(&world), |b: &[u8]| -> Result<(), std::convert::Infallible> {
         file.extend_from_slice(b);
         Ok(())
     })
     .map_err(|e| anyhow!("saving the map: {e:?}"))?;
     std::fs::write(path, &file).with_context(|| format!("writing map {}", path.display()))?;
-    eprintln!("map: {} keyframes saved to {} ({} bytes)", m.len(), path.display(), file.len());
+    eprintln!(
+        "map: {} keyframes, {} planes and {} anchors saved to {} ({} bytes)",
+        m.len(),
+        world.planes.planes().len(),
+        world.anchors.len(),
+        path.display(),
+        file.len()
+    );
     Ok(())
 }
 
@@ -383,7 +413,7 @@ where
     } else {
         RunPlaces::Off(NoPlaces)
     };
-    load_map(&mut memory, maps)?;
+    load_map(&mut memory, &mut slam, maps)?;
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
     let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
@@ -466,7 +496,7 @@ where
         RunPlaces::On(m) => Some(places_report(m, &per_frame)),
         RunPlaces::Off(_) => None,
     };
-    save_map(&mut memory, slam.map(), maps)?;
+    save_map(&mut memory, &slam, maps)?;
     Ok(TrackingRun {
         data,
         camera: Trajectory::new(camera),

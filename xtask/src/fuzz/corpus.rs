@@ -21,7 +21,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use ferroslam_core::ar::AnchorCommand;
+use ferroslam_core::ar::{AnchorCommand, SavedWorld, WORLD_UNITS, World};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::RamStore;
@@ -29,7 +29,7 @@ use ferroslam_core::persist::{FlashStore, SECTOR_BYTES, SliceFlash, flash_bytes_
 use ferroslam_core::wire::{
     AnchorMessage, CommandMessage, FaultCode, FaultMessage, Message, TickUnit,
 };
-use ferroslam_firmware::commands::NoCommands;
+use ferroslam_firmware::commands::LinkCommands;
 use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_sim::dataset::{Calibration, parse_image_list};
 use ferroslam_sim::map_file::{MapFile, encode_map_file};
@@ -45,6 +45,9 @@ type Seeds = Vec<(String, Vec<u8>)>;
 
 /// Frames of the demo the pipeline runs for the seeds.
 const DEMO_FRAMES: usize = 45;
+
+/// The demo frame the seeds' two objects are placed in.
+const ANCHOR_FRAME: u32 = 40;
 
 /// Data lines kept of each 7-Scenes list.
 const LIST_LINES: usize = 6;
@@ -122,13 +125,22 @@ fn demo_run() -> Result<DemoRun> {
     let mut places = Box::new(PlaceMemory::new(RamStore::<64>::new(), 1));
     let mut sink = WireWriter::new(Vec::new());
     let mut clock = CountingClock(0);
+    // Two objects placed (on the floor and a wall), so the saved map holds anchors too.
+    let mut commands = WireWriter::new(Vec::new());
+    for (object, pixel) in [(0, [80.0, 200.0]), (1, [60.0, 60.0])] {
+        let command = AnchorCommand::Place { object, pixel, scale: 1.0 };
+        let _ =
+            commands.send(&Message::Command(CommandMessage { frame_index: ANCHOR_FRAME, command }));
+    }
+    let commands = commands.into_inner();
+    let mut received = LinkCommands::new(&commands[..]);
     loop {
         let outcome = run_frame(
             &mut source,
             pipeline.as_mut(),
             places.as_mut(),
             &cam,
-            Link { tx: &mut sink, rx: &mut NoCommands },
+            Link { tx: &mut sink, rx: &mut received },
             &mut clock,
             |_| 0,
         )?;
@@ -139,10 +151,11 @@ fn demo_run() -> Result<DemoRun> {
         }
     }
     pipeline.remember_map_in(&cam, places.as_mut());
-    places.commit().map_err(|e| anyhow!("commit: {e:?}"))?;
+    let world = pipeline.slam().world();
+    places.commit(Some(&world)).map_err(|e| anyhow!("commit: {e:?}"))?;
     let mut map = Vec::new();
     places
-        .save(|b| {
+        .save(Some(&world), |b| {
             map.extend_from_slice(b);
             Ok::<(), std::convert::Infallible>(())
         })
@@ -151,7 +164,8 @@ fn demo_run() -> Result<DemoRun> {
     Ok(DemoRun { capture: sink.into_inner(), map, status })
 }
 
-/// The demo's map with its first `n` records (at most as many as it has).
+/// The demo's map with its first `n` records (at most as many as it has), without its planes and
+/// anchors.
 fn map_of(demo: &DemoRun, n: usize) -> Result<Vec<u8>> {
     let file = MapFile::from_bytes(&demo.map).context("the demo's map")?;
     if file.records.len() < 2 {
@@ -165,11 +179,12 @@ fn map_seeds(demo: &DemoRun) -> Result<Seeds> {
         ("demo-0-records.fsmp".into(), map_of(demo, 0)?),
         ("demo-1-record.fsmp".into(), map_of(demo, 1)?),
         ("demo-2-records.fsmp".into(), map_of(demo, 2)?),
+        ("demo-with-planes.fsmp".into(), demo.map.clone()),
     ])
 }
 
 fn flash_seeds(demo: &DemoRun) -> Result<Seeds> {
-    let [first, second] = flash_images::<SECTOR_BYTES, 4>(demo, flash_bytes_for(2))?;
+    let [first, second] = flash_images::<SECTOR_BYTES, 4>(demo, flash_bytes_for(2 + WORLD_UNITS))?;
     let [sectors_first, sectors_second] =
         flash_images::<SECTOR_MODE_SECTOR, SECTOR_MODE_WORD>(demo, MAX_REGION_BYTES)?;
     Ok(vec![
@@ -181,11 +196,15 @@ fn flash_seeds(demo: &DemoRun) -> Result<Seeds> {
 }
 
 /// A region of `bytes` on flash of `SECTOR`-byte sectors and `WORD`-byte words after the demo's
-/// map of 2 records was loaded and committed, then after its map of 1 record was.
+/// map of 2 records was loaded and committed with its planes, then after its map of 1 record was
+/// (without).
 fn flash_images<const SECTOR: usize, const WORD: usize>(
     demo: &DemoRun,
     bytes: usize,
 ) -> Result<[Vec<u8>; 2]> {
+    let saved = MapFile::from_bytes(&demo.map).context("the demo's map")?.world;
+    let parts = saved.as_ref().map(SavedWorld::restored).context("the demo's map has planes")?;
+    let world = World { planes: &parts.0, anchors: &parts.1 };
     let mut region = vec![0xFF; bytes];
     let mut images = Vec::new();
     for records in [2, 1] {
@@ -195,7 +214,8 @@ fn flash_images<const SECTOR: usize, const WORD: usize>(
             PlaceMemory::new(FlashStore::unmounted(SliceFlash::with_geometry(&mut [])), 1);
         memory.attach(store);
         memory.load(&map_of(demo, records)?).map_err(|e| anyhow!("loading the map: {e}"))?;
-        memory.commit().map_err(|e| anyhow!("commit: {e:?}"))?;
+        let with = (records == 2).then_some(&world);
+        memory.commit(with).map_err(|e| anyhow!("commit: {e:?}"))?;
         images.push(region.clone());
     }
     let second = images.pop().context("two images")?;

@@ -38,7 +38,8 @@ fn repair_unit(unit: &mut [u8], magic: &[u8]) {
     sum.copy_from_slice(&fnv(body).to_le_bytes());
 }
 
-/// A map file: cut to whole records, each record's checksum, the header's count and checksum.
+/// A map file: cut to whole units, each record's and world unit's checksum, the header's count
+/// (less the world units its byte 10 states) and checksum.
 pub fn map_file(data: &mut Vec<u8>) {
     if data.len() < MAP_HEADER_BYTES {
         return;
@@ -46,8 +47,13 @@ pub fn map_file(data: &mut Vec<u8>) {
     let records = (data.len() - MAP_HEADER_BYTES) / PLACE_RECORD_BYTES;
     data.truncate(MAP_HEADER_BYTES + records * PLACE_RECORD_BYTES);
     let (header, body) = data.split_at_mut(MAP_HEADER_BYTES);
-    body.chunks_exact_mut(PLACE_RECORD_BYTES).for_each(|r| repair_unit(r, b"FP"));
-    let count = u32::try_from(records).unwrap_or(u32::MAX);
+    body.chunks_exact_mut(PLACE_RECORD_BYTES).for_each(|r| {
+        repair_unit(r, b"FP");
+        repair_unit(r, b"FW");
+    });
+    // Byte 10: the world units after the records.
+    let world = usize::from(header.get(10).copied().unwrap_or(0));
+    let count = u32::try_from(records.saturating_sub(world)).unwrap_or(u32::MAX);
     if let Some(dst) = header.get_mut(MAP_COUNT_AT..MAP_COUNT_AT + 4) {
         dst.copy_from_slice(&count.to_le_bytes());
     }
@@ -60,8 +66,12 @@ pub fn map_file(data: &mut Vec<u8>) {
 #[allow(clippy::ptr_arg, reason = "every repair has the signature of `Shape::repair`")]
 pub fn flash(data: &mut Vec<u8>) {
     for (i, unit) in data.chunks_exact_mut(PLACE_RECORD_BYTES).enumerate() {
-        let magic: &[u8] = if i < TABLE_UNITS { b"FT" } else { b"FP" };
-        repair_unit(unit, magic);
+        if i < TABLE_UNITS {
+            repair_unit(unit, b"FT");
+        } else {
+            repair_unit(unit, b"FP");
+            repair_unit(unit, b"FW");
+        }
     }
 }
 

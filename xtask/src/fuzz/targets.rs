@@ -26,10 +26,12 @@
 use std::convert::Infallible;
 use std::path::Path;
 
+use ferroslam_core::ar::{SavedWorld, World};
 use ferroslam_core::loops::PlaceMemory;
 use ferroslam_core::map::RamStore;
 use ferroslam_core::persist::{
-    FlashStore, MapFileError, SECTOR_BYTES, SliceFlash, check_map_file, flash_bytes_for,
+    FlashStore, MAP_VERSION, MapFileError, SECTOR_BYTES, SliceFlash, check_map_file,
+    flash_bytes_for,
 };
 use ferroslam_core::wire::{MAX_FRAME_ON_WIRE, Message, encode};
 use ferroslam_sim::dataset::undistort::Undistorter;
@@ -70,6 +72,7 @@ pub fn map_file(input: &[u8]) -> Result<Outcome, String> {
     let checked = check_map_file(input, MAX_MAP_RECORDS);
     let mut memory = host_places();
     let loaded = memory.load(input);
+    let world = loaded.as_ref().ok().and_then(Option::as_ref);
     let file = MapFile::from_bytes(input);
     if checked.is_ok() != loaded.is_ok() || checked.is_ok() != file.is_ok() {
         return Err(format!(
@@ -79,8 +82,8 @@ pub fn map_file(input: &[u8]) -> Result<Outcome, String> {
         ));
     }
     if loaded.is_ok() {
-        let saved =
-            save(memory.as_mut()).map_err(|e| format!("a loaded map does not save: {e}"))?;
+        let saved = save_with(memory.as_mut(), world)
+            .map_err(|e| format!("a loaded map does not save: {e}"))?;
         same_map_saved(&saved, input)?;
     }
     if let Ok(file) = &file {
@@ -106,9 +109,16 @@ pub fn map_file(input: &[u8]) -> Result<Outcome, String> {
 }
 
 /// Whether `saved`, what a memory that loaded the map file `input` saves, is `input`: `Err` when
-/// it is not (the known issue `map-header-reserved-bytes` when only those bytes differ).
+/// it is not (the known issue `map-header-reserved-bytes` when only those bytes differ). A
+/// version 2 file saves as this build's version, byte 4 the only difference.
 fn same_map_saved(saved: &[u8], input: &[u8]) -> Result<(), String> {
-    if saved == input {
+    let mut upgraded = input.to_vec();
+    if upgraded.get(4) == Some(&2)
+        && let Some(v) = upgraded.get_mut(4)
+    {
+        *v = MAP_VERSION;
+    }
+    if saved == upgraded {
         return Ok(());
     }
     Err(format!(
@@ -140,17 +150,27 @@ pub fn flash_mount(input: &[u8]) -> Result<Outcome, String> {
 fn flash_mount_on<const SECTOR: usize, const WORD: usize>(input: &[u8]) -> Result<Outcome, String> {
     let mut region = input.get(..MAX_REGION_BYTES).unwrap_or(input).to_vec();
     region.resize(region.len().next_multiple_of(SECTOR), 0xFF);
-    let (generation, undecodable, held, first) = {
+    let (generation, undecodable, held, first, world) = {
         let mut memory = boot::<SECTOR, WORD>(&mut region)?;
         let generation = memory.store().generation();
+        let world = memory.held_world();
         let first = save(&mut memory).map_err(|e| format!("save after attach: {e}"))?;
-        (generation, memory.stats().store_errors, memory.len(), first)
+        (generation, memory.stats().store_errors, memory.len(), first, world)
     };
     let class = match (generation, undecodable) {
         (0, _) => return Ok(Outcome::refused("no committed table".into())),
         (_, 0) => format!("table, {} records", held.min(3)),
         _ => "table, records that do not decode".into(),
     };
+    let class = match &world {
+        Some(Ok(_)) => format!("{class}, a world"),
+        Some(Err(e)) => format!("{class}, a world refused ({})", class_of(e)),
+        None => class,
+    };
+    // The world it held, if it read whole: committed again with the records, found again.
+    let kept = world.and_then(Result::ok);
+    let parts = kept.as_ref().map(SavedWorld::restored);
+    let with = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
     // The map it held, less its last record, loaded (written anew) and committed: the next boot
     // must find exactly that map.
     let Ok(file) = MapFile::from_bytes(&first) else { return Ok(Outcome::accepted(class)) };
@@ -163,11 +183,21 @@ fn flash_mount_on<const SECTOR: usize, const WORD: usize>(input: &[u8]) -> Resul
         if memory.stats().store_errors > 0 {
             return Ok(Outcome::accepted(format!("{class}, store full")));
         }
-        if memory.commit().is_err() {
+        if memory.commit(with.as_ref()).is_err() {
             return Ok(Outcome::accepted(format!("{class}, commit failed")));
         }
     }
     let mut memory = boot::<SECTOR, WORD>(&mut region)?;
+    let world_again = memory.held_world().and_then(Result::ok);
+    if world_again != kept {
+        return Err(format!(
+            "a world committed with the records is not what the next boot finds: {} planes, \
+             {} anchors committed, {:?} found",
+            kept.as_ref().map_or(0, |w| w.planes().len()),
+            kept.as_ref().map_or(0, |w| w.anchors().len()),
+            world_again.as_ref().map(|w| (w.planes().len(), w.anchors().len()))
+        ));
+    }
     let found = save(&mut memory).map_err(|e| format!("save after the second boot: {e}"))?;
     if found != fewer {
         return Err(format!(
@@ -195,13 +225,23 @@ fn boot<const SECTOR: usize, const WORD: usize>(
     Ok(memory)
 }
 
-/// The map file `memory` saves.
+/// The map file `memory` saves (its records only).
 pub fn save<S: ferroslam_core::map::KeyframeStore>(
     memory: &mut PlaceMemory<S>,
 ) -> Result<Vec<u8>, String> {
+    save_with(memory, None)
+}
+
+/// What [`save`] writes, with `world`'s planes and anchors after the records.
+fn save_with<S: ferroslam_core::map::KeyframeStore>(
+    memory: &mut PlaceMemory<S>,
+    world: Option<&SavedWorld>,
+) -> Result<Vec<u8>, String> {
+    let parts = world.map(SavedWorld::restored);
+    let world = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
     let mut out = Vec::new();
     memory
-        .save(|b| {
+        .save(world.as_ref(), |b| {
             out.extend_from_slice(b);
             Ok::<(), Infallible>(())
         })

@@ -129,7 +129,7 @@ fn main() -> ! {
     let places = PLACES;
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit(EXIT_FAILURE) };
     let mut clock = SysTickClock::<INSTRUCTIONS_PER_TICK>::start(peripherals.SYST);
-    let status = mount(places, place_store, &mut clock)
+    let status = mount(places, pipeline, place_store, &mut clock)
         .and_then(|()| run(store, pipeline, places, &mut clock));
     let status = match status {
         Ok(()) => EXIT_SUCCESS,
@@ -142,17 +142,27 @@ fn main() -> ! {
 }
 
 /// Mounts the flash region's store and attaches the place memory to it: the last committed map,
-/// if the region holds one, is what the run starts in. Out of line: the store's mount works on
-/// the stack (the table and bitmaps, 1.4 KB) only here, not under the frame loop.
+/// if the region holds one, is what the run starts in, its planes and anchors given to
+/// `pipeline` (saved ones that do not decode are left out, with a warning). Out of line: the
+/// store's mount works on the stack (the table and bitmaps, 1.4 KB) only here, not under the
+/// frame loop.
 #[inline(never)]
 fn mount(
     places: &mut BoardPlaces,
+    pipeline: &mut Pipeline,
     place_store: &'static mut [u8],
     clock: &mut SysTickClock<INSTRUCTIONS_PER_TICK>,
 ) -> Result<(), Failure> {
     let before = clock.now();
     let flash = FlashStore::mount(SliceFlash::new(place_store)).map_err(Failure::Store)?;
     places.attach(flash);
+    match pipeline.restore_world(places) {
+        Ok(Some((planes, anchors))) => {
+            defmt::info!("saved world: {} planes, {} anchors", planes, anchors);
+        }
+        Ok(None) => {}
+        Err(e) => defmt::warn!("saved planes and anchors left out: {}", e),
+    }
     let ticks = clock.now().wrapping_sub(before);
     defmt::info!(
         "place store: {} keyframes held (table generation {}), mounted and indexed in {} \
@@ -263,7 +273,7 @@ fn save(
     path: &str,
 ) -> Result<(), Failure> {
     pipeline.remember_map_in(cam, places);
-    places.commit().map_err(Failure::Store)?;
+    pipeline.commit(places).map_err(Failure::Store)?;
     defmt::info!(
         "map saved: {} keyframes, table generation {}; flash image to {=str}",
         places.len(),

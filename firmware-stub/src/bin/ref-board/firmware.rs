@@ -96,6 +96,8 @@ fn main() -> ! {
         Ok(flash) => places.attach(flash),
         Err(_) => report_and_halt(&mut link, STORE_FAULT),
     }
+    // Its planes and anchors: saved ones that do not decode are left out (the records stay).
+    let _ = pipeline.restore_world(places);
     // Gray FIFO: SPI1 with chip select PA4, frame-ready on PC0; depth FIFO: SPI1 with chip select
     // PA15, frame-ready on PC1 (the two share the bus type and so the driver's SPI type).
     let gray = FifoPort { spi: SpiDev::spi1(Pin::new(PORT_A, 4)), ready: Pin::new(PORT_C, 0) };
@@ -124,10 +126,11 @@ fn main() -> ! {
         }
         frames = frames.wrapping_add(1);
         if frames.is_multiple_of(COMMIT_EVERY_FRAMES) {
-            // The keyframes the map has retired become what a boot finds (those still in the
-            // active map are not written, to spare the flash). A failed commit is counted by the
-            // place memory (`PlaceStats::store_errors`); the last commit stands.
-            let _ = places.commit();
+            // The keyframes the map has retired, then the planes and anchors, become what a boot
+            // finds (keyframes still in the active map are not written, to spare the flash). A
+            // failed commit is counted by the place memory (`PlaceStats::store_errors`); the
+            // last commit stands.
+            let _ = pipeline.commit(places);
         }
     }
 }
