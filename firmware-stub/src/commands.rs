@@ -1,12 +1,19 @@
 //! The serial link's receive side: anchor commands from the host ([`CommandMessage`], the same
-//! framing and CRC as the telemetry the board sends), read from any `embedded_io` reader (the
-//! UART's receive side; on the QEMU board a host file of what the host sent).
+//! framing and CRC as the telemetry the board sends), read from any `embedded_io` reader that
+//! says what has arrived ([`embedded_io::ReadReady`]): the UART's received bytes in a ring
+//! ([`crate::rx_ring::RxRing`], the reference board's), or all of them at once ([`Arrived`]: on
+//! the QEMU board a host file of what the host sent).
+//!
+//! The frame loop never waits for the link: each frame reads the bytes that have arrived and no
+//! more, and a command frame cut by the end of what arrived is finished by a later frame's bytes
+//! (the decoder's state, about 140 bytes, is kept between frames).
 //!
 //! A command names the frame it applies in; the board applies it after that frame's front end
 //! ([`crate::pipeline::run_frame`]), so a replay applies every command in the same frame on the
 //! board and on the host whatever the bytes' timing. Commands arrive in the order they apply:
 //! the reader holds one that is not due yet until its frame comes.
 
+use embedded_io::{ErrorType, Read, ReadReady};
 use ferroslam_core::wire::{CommandMessage, FrameError, MAX_ENCODED_FRAME, Message, StreamDecoder};
 
 /// Why a command frame gave no command.
@@ -58,44 +65,75 @@ impl<C: CommandSource> CommandSource for Option<C> {
     }
 }
 
-/// Commands decoded from the bytes of `reader`, one frame at a time, as they come due. State: the
-/// reader and one command not due yet (the decoder is on the stack only while a frame is read).
+/// Commands decoded from the bytes of `reader` as they arrive, one frame at a time, as they come
+/// due. State: the reader, the decoder's partial frame, and one command not due yet.
 #[derive(Debug)]
 pub struct LinkCommands<R> {
     reader: R,
+    decoder: StreamDecoder<MAX_ENCODED_FRAME>,
     pending: Option<CommandMessage>,
     /// The reader ended or failed: nothing more comes.
     ended: bool,
 }
 
-impl<R: embedded_io::Read> LinkCommands<R> {
+impl<R: Read + ReadReady> LinkCommands<R> {
     /// Commands from `reader`.
     pub const fn new(reader: R) -> Self {
-        Self { reader, pending: None, ended: false }
+        Self { reader, decoder: StreamDecoder::new(), pending: None, ended: false }
     }
 
-    /// The next frame's message from the reader, `None` at its end (or on a read error: a link
-    /// that fails gives nothing more). Cost: one read call per byte.
+    /// The next frame's message from the bytes arrived so far; `None` when they hold no whole
+    /// frame more (the partial one is kept for the next call), or at the reader's end (or a
+    /// read error: a link that fails gives nothing more). Cost: one read call per byte.
     fn read_frame(&mut self) -> Option<Result<Message, FrameError>> {
-        let mut decoder = StreamDecoder::<MAX_ENCODED_FRAME>::new();
         let mut byte = [0u8; 1];
         while !self.ended {
+            match self.reader.read_ready() {
+                Ok(true) => {}
+                // The rest has not arrived: a later frame reads it.
+                Ok(false) => return None,
+                Err(_) => {
+                    self.ended = true;
+                    break;
+                }
+            }
             match self.reader.read(&mut byte) {
                 Ok(1) => {
-                    if let Some(m) = decoder.push(byte[0]) {
+                    if let Some(m) = self.decoder.push(byte[0]) {
                         return Some(m);
                     }
                 }
                 _ => self.ended = true,
             }
         }
-        // Bytes after the last delimiter are a frame cut short.
-        let len = decoder.pending_bytes();
+        // At the end, bytes after the last delimiter are a frame cut short (named once).
+        let len = self.decoder.pending_bytes();
+        self.decoder = StreamDecoder::new();
         (len > 0).then_some(Err(FrameError::TooShort { len }))
     }
 }
 
-impl<R: embedded_io::Read> CommandSource for LinkCommands<R> {
+/// A reader whose bytes have all arrived (a file, a slice): always ready, its end the link's.
+#[derive(Debug, Clone, Copy)]
+pub struct Arrived<R>(pub R);
+
+impl<R: ErrorType> ErrorType for Arrived<R> {
+    type Error = R::Error;
+}
+
+impl<R: Read> Read for Arrived<R> {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        self.0.read(buf)
+    }
+}
+
+impl<R: Read> ReadReady for Arrived<R> {
+    fn read_ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(true)
+    }
+}
+
+impl<R: Read + ReadReady> CommandSource for LinkCommands<R> {
     fn next_due(&mut self, frame_index: u32) -> Option<Result<CommandMessage, CommandError>> {
         if self.pending.is_none() {
             self.pending = match self.read_frame()? {
@@ -146,8 +184,8 @@ pub(crate) mod tests {
         let status = Message::Status(Default::default());
         bytes.extend_from_slice(&wire(&[status, command(9, 4)]));
         bytes.extend_from_slice(&wire(&[command(9, 5)])[..6]);
-        let mut link = LinkCommands::new(&bytes[..]);
-        let objects = |link: &mut LinkCommands<&[u8]>, frame| {
+        let mut link = LinkCommands::new(Arrived(&bytes[..]));
+        let objects = |link: &mut LinkCommands<Arrived<&[u8]>>, frame| {
             let mut got = Vec::new();
             while let Some(c) = link.next_due(frame) {
                 got.push(c.map(|c| c.command.object()));

@@ -14,7 +14,9 @@
 //! - [`serial`]: the serial link, a [`TelemetrySink`](ferroslam_core::frame::TelemetrySink) over
 //!   `embedded_io::Write` framing messages with postcard + CRC-32 + COBS (`ferroslam_core::wire`).
 //! - [`commands`]: the serial link's receive side, anchor commands from the host
-//!   ([`commands::LinkCommands`] over any `embedded_io` reader).
+//!   ([`commands::LinkCommands`] over any `embedded_io` reader that says what has arrived).
+//! - [`rx_ring`]: a UART's received bytes in a ring a DMA stream fills ([`rx_ring::RxRing`]), read
+//!   without waiting: the reference board's receive side.
 //! - [`faulty_link`]: a fault injector on the serial link (bytes dropped, bits flipped, frames
 //!   cut short), wrapping any `embedded_io` writer or reader, for tests.
 //! - [`frame_file`]: the raw frame file (header, gray u8, depth u16 LE) that recorded frames travel
@@ -37,6 +39,7 @@ pub mod commands;
 pub mod faulty_link;
 pub mod frame_file;
 pub mod pipeline;
+pub mod rx_ring;
 #[cfg(target_os = "none")]
 pub mod semihost_source;
 #[cfg(target_os = "none")]

@@ -404,7 +404,7 @@ mod tests {
 
     #[test]
     fn commands_not_applied_are_faults_of_their_frame() {
-        use crate::commands::LinkCommands;
+        use crate::commands::{Arrived, LinkCommands};
         use ferroslam_core::ar::AnchorCommand;
         use ferroslam_core::wire::CommandMessage;
 
@@ -424,7 +424,7 @@ mod tests {
         ]
         .map(|command| Message::Command(CommandMessage { frame_index: 1, command }));
         let bytes = crate::commands::tests::wire(&commands);
-        let mut rx = LinkCommands::new(&bytes[..]);
+        let mut rx = LinkCommands::new(Arrived(&bytes[..]));
         for _ in 0..2 {
             let link = Link { tx: &mut sink, rx: &mut rx };
             let step =

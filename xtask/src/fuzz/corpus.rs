@@ -29,7 +29,7 @@ use ferroslam_core::persist::{FlashStore, SECTOR_BYTES, SliceFlash, flash_bytes_
 use ferroslam_core::wire::{
     AnchorMessage, CommandMessage, FaultCode, FaultMessage, Message, TickUnit,
 };
-use ferroslam_firmware::commands::LinkCommands;
+use ferroslam_firmware::commands::{Arrived, LinkCommands};
 use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_sim::dataset::{Calibration, parse_image_list};
 use ferroslam_sim::map_file::{MapFile, encode_map_file};
@@ -133,7 +133,7 @@ fn demo_run() -> Result<DemoRun> {
             commands.send(&Message::Command(CommandMessage { frame_index: ANCHOR_FRAME, command }));
     }
     let commands = commands.into_inner();
-    let mut received = LinkCommands::new(&commands[..]);
+    let mut received = LinkCommands::new(Arrived(&commands[..]));
     loop {
         let outcome = run_frame(
             &mut source,

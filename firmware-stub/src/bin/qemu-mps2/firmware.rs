@@ -14,7 +14,7 @@ use ferroslam_core::persist::{FlashStore, FlashStoreError, SliceFlash};
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message, PoseFlags};
 use ferroslam_firmware::cmsdk_uart::CmsdkUart;
-use ferroslam_firmware::commands::LinkCommands;
+use ferroslam_firmware::commands::{Arrived, LinkCommands};
 use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, TickClock, run_frame};
 use ferroslam_firmware::semihost_source::{SemihostFrames, SourceError};
 use ferroslam_firmware::semihosting::{HostFile, Mode, SemihostingError, command_line};
@@ -200,7 +200,7 @@ fn run(
         Some(path) => {
             let file = HostFile::open(path, Mode::Read).map_err(Failure::Commands)?;
             defmt::info!("anchor commands: {=str}", path);
-            Some(LinkCommands::new(file))
+            Some(LinkCommands::new(Arrived(file)))
         }
         None => None,
     };

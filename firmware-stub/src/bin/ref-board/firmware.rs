@@ -14,12 +14,13 @@ use ferroslam_core::persist::FlashStore;
 use ferroslam_core::system::SLAM_FRONTEND;
 use ferroslam_core::wire::{FaultCode, FaultMessage, Message};
 use ferroslam_firmware::camera::{CameraConfig, CameraError, FifoPort, RgbdCamera};
-use ferroslam_firmware::commands::NoCommands;
+use ferroslam_firmware::commands::LinkCommands;
 use ferroslam_firmware::pipeline::{FrameOutcome, Link, Pipeline, run_frame};
+use ferroslam_firmware::rx_ring::RxRing;
 use ferroslam_firmware::serial::SerialLink;
 use ferroslam_firmware::stream::HalfFrame;
 
-use crate::h7::{BusyDelay, CycleClock, I2cBus, Pin, SpiDev, UsartTx};
+use crate::h7::{BusyDelay, CycleClock, I2cBus, Pin, RX_RING_BYTES, SpiDev, UsartRxDma, UsartTx};
 use crate::h7_flash::Bank2Flash;
 
 /// Frames between two commits of the place memory (about 10 s at 30 frames a second): a power cut
@@ -52,6 +53,10 @@ static mut STORE: MaybeUninit<HalfFrame> = MaybeUninit::uninit();
 #[unsafe(link_section = ".axisram")]
 static mut PIPELINE: MaybeUninit<Pipeline> = MaybeUninit::uninit();
 
+/// The serial link's receive ring, in SRAM1-3: DMA1 writes it (it does not reach DTCM).
+#[unsafe(link_section = ".sram123")]
+static mut RX_RING: MaybeUninit<[u8; RX_RING_BYTES]> = MaybeUninit::uninit();
+
 /// Whether [`take_statics`] has handed the statics out.
 static TAKEN: AtomicBool = AtomicBool::new(false);
 
@@ -60,24 +65,29 @@ static TAKEN: AtomicBool = AtomicBool::new(false);
 /// and it is larger than the whole DTCM.)
 static PIPELINE_IMAGE: Pipeline = Pipeline::new();
 
-/// The frame store and the pipeline, initialized in place, handed out once (`None` after).
+/// The frame store, the pipeline and the receive ring, initialized in place, handed out once
+/// (`None` after).
 ///
 /// The sections are `NOLOAD`: cortex-m-rt neither zeroes nor copies them, so they are written
 /// here, in place, before any reference to them exists.
-fn take_statics() -> Option<(&'static mut HalfFrame, &'static mut Pipeline)> {
+#[allow(clippy::type_complexity)]
+fn take_statics()
+-> Option<(&'static mut HalfFrame, &'static mut Pipeline, &'static mut [u8; RX_RING_BYTES])> {
     if TAKEN.swap(true, Ordering::AcqRel) {
         return None;
     }
-    // SAFETY: `TAKEN` makes this the only access to the two statics ever. Each is fully written
-    // before the `&'static mut` to it is created: the store with zeros, which is exactly
+    // SAFETY: `TAKEN` makes this the only access to the three statics ever. Each is fully
+    // written before the `&'static mut` to it is created: the store with zeros, which is exactly
     // `HalfFrame::new()` (integer arrays and an integer size, all 0), the pipeline with a byte
-    // copy of a valid `Pipeline` (a plain-data value: no pointers, no drop).
+    // copy of a valid `Pipeline` (a plain-data value: no pointers, no drop), the ring with zeros.
     unsafe {
         let store = (&raw mut STORE).cast::<HalfFrame>();
         core::ptr::write_bytes(store, 0, 1);
         let pipeline = (&raw mut PIPELINE).cast::<Pipeline>();
         core::ptr::copy_nonoverlapping(&raw const PIPELINE_IMAGE, pipeline, 1);
-        Some((&mut *store, &mut *pipeline))
+        let ring = (&raw mut RX_RING).cast::<[u8; RX_RING_BYTES]>();
+        core::ptr::write_bytes(ring, 0, 1);
+        Some((&mut *store, &mut *pipeline, &mut *ring))
     }
 }
 
@@ -87,9 +97,12 @@ fn main() -> ! {
     // `&'static mut`, copied from its `const` image by the reset handler.
     static mut PLACES: BoardPlaces =
         PlaceMemory::new(FlashStore::unmounted(Bank2Flash::new()), SLAM_FRONTEND.rng_seed);
-    let Some((store, pipeline)) = take_statics() else { halt() };
+    let Some((store, pipeline, ring)) = take_statics() else { halt() };
     let Some(core) = cortex_m::Peripherals::take() else { halt() };
     let mut link = SerialLink::new(UsartTx::usart1());
+    // Anchor commands: the bytes USART1 receives, in a ring by DMA, read each frame as far as
+    // they have arrived (the frame loop never waits for the link).
+    let mut received = LinkCommands::new(RxRing::new(UsartRxDma::start(ring)));
     // The last committed map, if bank 2 holds one: the run starts in it.
     let places = PLACES;
     match FlashStore::mount(Bank2Flash::new()) {
@@ -116,9 +129,7 @@ fn main() -> ! {
     let mut frames: u32 = 0;
     loop {
         let code = |e: &CameraError<_, _, _>| e.code();
-        // No receive side yet: anchor commands need the UART's received bytes in a ring buffer
-        // (an interrupt or DMA) read without blocking the frame loop.
-        let sides = Link { tx: &mut link, rx: &mut NoCommands };
+        let sides = Link { tx: &mut link, rx: &mut received };
         match run_frame(&mut camera, pipeline, places, &cam, sides, &mut clock, code) {
             Ok(FrameOutcome::Processed { .. } | FrameOutcome::Fault(_)) => {}
             // A camera never ends; a dead link leaves nothing to report to.

@@ -1,7 +1,7 @@
 //! A register-level minimum of the STM32H743 peripherals the wiring needs, as embedded-hal 1.0
 //! and embedded-io implementations: GPIO input (frame-ready lines) and output (chip selects), SPI
-//! master (polled, full duplex), I2C master (polled), USART transmitter, a busy-wait delay and a
-//! DWT cycle clock.
+//! master (polled, full duplex), I2C master (polled), USART transmitter, USART receiver into a
+//! ring by DMA, a busy-wait delay and a DWT cycle clock.
 //!
 //! PLACEHOLDER FOR A REAL HAL. This exists so that the reference board's binary links the same
 //! generic driver code with concrete types and the linker checks the memory map; it has never run
@@ -19,6 +19,7 @@ use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource, Operation as I2cOp, Seve
 use embedded_hal::spi::{self, Operation as SpiOp, SpiDevice};
 use ferroslam_core::wire::TickUnit;
 use ferroslam_firmware::pipeline::TickClock;
+use ferroslam_firmware::rx_ring::RingProducer;
 
 /// The core clock the delay assumes, Hz (the H743 at full speed).
 pub const CORE_HZ: u32 = 480_000_000;
@@ -339,6 +340,103 @@ impl embedded_io::Write for UsartTx {
     fn flush(&mut self) -> Result<(), UsartTimeout> {
         if wait_set(self.base + USART_ISR, USART_ISR_TC) { Ok(()) } else { Err(UsartTimeout) }
     }
+}
+
+/// USART1's registers beyond the transmitter's (RM0433 section 48): CR1 (UE, RE), CR3 (DMAR,
+/// OVRDIS), RDR.
+const USART1: usize = 0x4001_1000;
+const USART_CR1: usize = 0x00;
+const USART_CR3: usize = 0x08;
+const USART_RDR: usize = 0x24;
+const USART_CR1_UE: u32 = 1 << 0;
+const USART_CR1_RE: u32 = 1 << 2;
+const USART_CR3_DMAR: u32 = 1 << 6;
+const USART_CR3_OVRDIS: u32 = 1 << 12;
+
+/// RCC's AHB1 clock enable register and its DMA1 bit (RM0433 section 8).
+const RCC_AHB1ENR: usize = 0x5802_44D8;
+const RCC_AHB1ENR_DMA1EN: u32 = 1 << 0;
+
+/// DMA1 stream 0 (RM0433 section 15: SxCR, SxNDTR, SxPAR, SxM0AR, SxFCR) and the DMAMUX1 channel
+/// that feeds it (channel 0, section 17), with USART1's receive request (DMAREQ_ID 41).
+const DMA1_S0CR: usize = 0x4002_0010;
+const DMA1_S0NDTR: usize = 0x4002_0014;
+const DMA1_S0PAR: usize = 0x4002_0018;
+const DMA1_S0M0AR: usize = 0x4002_001C;
+const DMA1_S0FCR: usize = 0x4002_0024;
+const DMA1_LIFCR: usize = 0x4002_0008;
+const DMAMUX1_C0CR: usize = 0x4002_0800;
+const DMAMUX_USART1_RX: u32 = 41;
+/// SxCR: EN, CIRC, MINC, PL high (peripheral to memory, bytes both sides).
+const DMA_SXCR_EN: u32 = 1 << 0;
+const DMA_SXCR_CIRC: u32 = 1 << 8;
+const DMA_SXCR_MINC: u32 = 1 << 10;
+const DMA_SXCR_PL_HIGH: u32 = 2 << 16;
+/// Every flag of stream 0 in LIFCR.
+const DMA_LIFCR_STREAM0: u32 = 0x3D;
+
+/// Bytes of the receive ring: more than 115,200 baud brings between two frames (about 390 bytes
+/// in 33 ms), so a frame loop that reads it once a frame never falls a lap behind.
+pub const RX_RING_BYTES: usize = 1024;
+
+/// USART1's receiver writing into a ring by DMA1 stream 0 in circular mode, as a
+/// [`RingProducer`]: no interrupt, no wait; the write position is the ring's length less the
+/// stream's remaining count. The ring must be where DMA1 reaches (not DTCM: AXI SRAM or SRAM1-3)
+/// and not cached: this firmware leaves the D-cache off (with it on, the ring needs a
+/// non-cacheable MPU region).
+#[derive(Debug)]
+pub struct UsartRxDma {
+    ring: *const u8,
+}
+
+impl UsartRxDma {
+    /// Starts USART1's receiver into `ring`: DMA1's clock on, DMAMUX1 channel 0 on USART1's
+    /// receive request, stream 0 circular from RDR into the ring, then the USART (disabled while
+    /// CR3 changes) with its receiver and DMA on and overrun detection off (a byte the DMA could
+    /// not take is overwritten, never a stop). The baud rate and pins are the transmitter's.
+    pub fn start(ring: &'static mut [u8; RX_RING_BYTES]) -> Self {
+        let at = ring.as_mut_ptr();
+        write(RCC_AHB1ENR, read(RCC_AHB1ENR) | RCC_AHB1ENR_DMA1EN);
+        write(DMA1_S0CR, 0);
+        let _ = wait_set_clear(DMA1_S0CR, DMA_SXCR_EN);
+        write(DMA1_LIFCR, DMA_LIFCR_STREAM0);
+        write(DMAMUX1_C0CR, DMAMUX_USART1_RX);
+        write(DMA1_S0PAR, (USART1 + USART_RDR) as u32);
+        write(DMA1_S0M0AR, at as u32);
+        write(DMA1_S0NDTR, RX_RING_BYTES as u32);
+        // Direct mode (no FIFO): each byte goes to the ring as it arrives.
+        write(DMA1_S0FCR, 0);
+        write(DMA1_S0CR, DMA_SXCR_CIRC | DMA_SXCR_MINC | DMA_SXCR_PL_HIGH);
+        write(DMA1_S0CR, DMA_SXCR_CIRC | DMA_SXCR_MINC | DMA_SXCR_PL_HIGH | DMA_SXCR_EN);
+        let cr1 = read(USART1 + USART_CR1);
+        write(USART1 + USART_CR1, cr1 & !USART_CR1_UE);
+        write(USART1 + USART_CR3, read(USART1 + USART_CR3) | USART_CR3_DMAR | USART_CR3_OVRDIS);
+        write(USART1 + USART_CR1, cr1 | USART_CR1_RE | USART_CR1_UE);
+        Self { ring: at }
+    }
+}
+
+impl RingProducer for UsartRxDma {
+    fn len(&self) -> usize {
+        RX_RING_BYTES
+    }
+
+    fn written_to(&self) -> usize {
+        let remaining = read(DMA1_S0NDTR) as usize;
+        RX_RING_BYTES.saturating_sub(remaining) % RX_RING_BYTES
+    }
+
+    fn byte(&self, at: usize) -> u8 {
+        // SAFETY: `ring` is the start of the `'static` ring `start` took (so alive and not
+        // aliased by safe code); `at % RX_RING_BYTES` is inside it; volatile, as the DMA writes
+        // it behind the compiler's back.
+        unsafe { ptr::read_volatile(self.ring.add(at % RX_RING_BYTES)) }
+    }
+}
+
+/// Waits until `(read(addr) & mask) == 0`, at most [`POLL_LIMIT`] polls.
+fn wait_set_clear(addr: usize, mask: u32) -> bool {
+    (0..POLL_LIMIT).any(|_| read(addr) & mask == 0)
 }
 
 /// Core cycles of `ns` nanoseconds at [`CORE_HZ`].
