@@ -29,6 +29,12 @@ pub const PLY_POINT_RGB: [u8; 3] = [170, 170, 170];
 /// Colour of the keyframes' camera positions in an exported PLY: red.
 pub const PLY_CAMERA_RGB: [u8; 3] = [255, 40, 40];
 
+/// Colour of the saved planes' centroids in an exported PLY: blue.
+pub const PLY_PLANE_RGB: [u8; 3] = [40, 110, 255];
+
+/// Colour of the saved anchors (the placed objects' positions) in an exported PLY: green.
+pub const PLY_ANCHOR_RGB: [u8; 3] = [40, 200, 60];
+
 /// What is wrong with a map file's bytes; the file is refused whole.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -176,9 +182,10 @@ impl MapFile {
     /// Writes the map as an ASCII PLY point cloud (any viewer opens it: MeshLab, CloudCompare):
     /// every record's verification points in the world frame (`t_wc * p_c`, metres), coloured
     /// [`PLY_POINT_RGB`], then each keyframe's camera position (the translation of `t_wc`),
-    /// coloured [`PLY_CAMERA_RGB`]; the header's comments say which is which. A vertex with a
-    /// non-finite coordinate (a record whose rotation is far from a unit quaternion) is left out
-    /// and counted.
+    /// coloured [`PLY_CAMERA_RGB`], then each saved plane's centroid ([`PLY_PLANE_RGB`]) and each
+    /// saved anchor's position ([`PLY_ANCHOR_RGB`]); the header's comments say which is which. A
+    /// vertex with a non-finite coordinate (a record whose rotation is far from a unit
+    /// quaternion) is left out and counted.
     ///
     /// # Errors
     /// A failed write.
@@ -188,28 +195,43 @@ impl MapFile {
             .iter()
             .flat_map(|r| r.points.iter().map(|p| <[f32; 3]>::from((r.t_wc * p.p_c).coords)));
         let cameras = self.records.iter().map(|r| <[f32; 3]>::from(r.t_wc.translation.vector));
+        let world = self.world.as_ref();
+        let planes = world.into_iter().flat_map(|w| w.planes().iter().map(|m| m.plane.centroid));
+        let anchors = world.into_iter().flat_map(|w| w.anchors().iter().map(|a| a.p_w));
         let (points, points_all) = finite_only(world_points);
         let (cameras, cameras_all) = finite_only(cameras);
+        // Saved planes and anchors are finite (the loader checks them).
+        let (planes, anchors): (Vec<_>, Vec<_>) = (planes.collect(), anchors.collect());
         let counts = PlyCounts {
             points: points.len(),
             cameras: cameras.len(),
+            planes: planes.len(),
+            anchors: anchors.len(),
             skipped: points_all - points.len() + cameras_all - cameras.len(),
         };
         let mut out = io::BufWriter::new(out);
-        let [pr, pg, pb] = PLY_POINT_RGB;
-        let [cr, cg, cb] = PLY_CAMERA_RGB;
+        let rgb = |[r, g, b]: [u8; 3]| format!("{r} {g} {b}");
         writeln!(out, "ply\nformat ascii 1.0")?;
         writeln!(
             out,
-            "comment ferroslam map (format version {MAP_VERSION}): {} keyframes",
+            "comment ferroslam map (format version {}): {} keyframes",
+            self.version,
             self.records.len()
         )?;
         writeln!(out, "comment world frame, metres; points are t_wc * p_c of each keyframe")?;
         writeln!(
             out,
-            "comment {} verification points coloured {pr} {pg} {pb} (grey), then {} keyframe \
-             camera positions coloured {cr} {cg} {cb} (red)",
-            counts.points, counts.cameras
+            "comment {} verification points coloured {} (grey), then {} keyframe camera \
+             positions coloured {} (red), then {} plane centroids coloured {} (blue), then {} \
+             anchors coloured {} (green)",
+            counts.points,
+            rgb(PLY_POINT_RGB),
+            counts.cameras,
+            rgb(PLY_CAMERA_RGB),
+            counts.planes,
+            rgb(PLY_PLANE_RGB),
+            counts.anchors,
+            rgb(PLY_ANCHOR_RGB)
         )?;
         writeln!(out, "element vertex {}", counts.vertices())?;
         for axis in ["x", "y", "z"] {
@@ -219,9 +241,15 @@ impl MapFile {
             writeln!(out, "property uchar {channel}")?;
         }
         writeln!(out, "end_header")?;
-        for (list, [r, g, b]) in [(&points, PLY_POINT_RGB), (&cameras, PLY_CAMERA_RGB)] {
+        let lists = [
+            (&points, PLY_POINT_RGB),
+            (&cameras, PLY_CAMERA_RGB),
+            (&planes, PLY_PLANE_RGB),
+            (&anchors, PLY_ANCHOR_RGB),
+        ];
+        for (list, colour) in lists {
             for [x, y, z] in list {
-                writeln!(out, "{x:.4} {y:.4} {z:.4} {r} {g} {b}")?;
+                writeln!(out, "{x:.4} {y:.4} {z:.4} {}", rgb(colour))?;
             }
         }
         out.flush()?;
@@ -271,6 +299,10 @@ pub struct PlyCounts {
     pub points: usize,
     /// Keyframe camera positions written.
     pub cameras: usize,
+    /// Saved planes' centroids written.
+    pub planes: usize,
+    /// Saved anchors written.
+    pub anchors: usize,
     /// Vertices left out for a non-finite coordinate.
     pub skipped: usize,
 }
@@ -278,7 +310,7 @@ pub struct PlyCounts {
 impl PlyCounts {
     /// Vertices written.
     pub fn vertices(&self) -> usize {
-        self.points + self.cameras
+        self.points + self.cameras + self.planes + self.anchors
     }
 }
 

@@ -637,7 +637,9 @@ fn a_map_saved_by_a_replay_reads_back_with_its_keyframes() {
     assert_eq!(declared, vertices.len());
     let cameras = vertices.iter().filter(|v| v.ends_with(" 255 40 40")).count();
     assert_eq!(cameras, keyframes, "one camera vertex per keyframe");
-    assert!(declared > keyframes, "and the verification points");
+    let centroids = vertices.iter().filter(|v| v.ends_with(" 40 110 255")).count();
+    assert_eq!(centroids, planes, "one vertex per saved plane");
+    assert!(declared > keyframes + planes, "and the verification points");
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains(&format!("wrote {declared} vertices")), "{stdout}");
 }

@@ -59,12 +59,14 @@ pub fn run(args: &MapArgs) -> Result<()> {
                 map.write_ply(out).with_context(|| format!("writing {}", ply.display()))?;
             println!(
                 "map {}: wrote {} vertices to {} ({} verification points, {} keyframe camera \
-                 positions)",
+                 positions, {} plane centroids, {} anchors)",
                 file.display(),
                 counts.vertices(),
                 ply.display(),
                 counts.points,
-                counts.cameras
+                counts.cameras,
+                counts.planes,
+                counts.anchors
             );
             if counts.skipped > 0 {
                 eprintln!(

@@ -104,6 +104,13 @@ fn a_map_with_planes_and_anchors_says_so_and_writes_them_back() {
     let s = map.summary();
     assert_eq!((s.keyframes, s.planes, s.anchors), (0, Some(1), Some(1)));
     assert!(s.to_string().contains("planes: 1, anchors: 1"));
+    // The PLY: the plane's centroid in blue, then the anchor in green.
+    let mut ply = Vec::new();
+    let counts = map.write_ply(&mut ply).unwrap();
+    assert_eq!((counts.planes, counts.anchors, counts.vertices()), (1, 1, 2));
+    let text = String::from_utf8(ply).unwrap();
+    let body: Vec<&str> = text.split_once("end_header\n").unwrap().1.lines().collect();
+    assert_eq!(body, ["0.3000 1.2000 2.0000 40 110 255", "0.3000 1.2000 2.0000 40 200 60"]);
 }
 
 #[test]
@@ -137,7 +144,7 @@ fn the_cloud_has_every_point_in_the_world_frame_then_the_cameras() {
     let map = MapFile::from_bytes(&encode_map_file(&three_records())).unwrap();
     let mut ply = Vec::new();
     let counts = map.write_ply(&mut ply).unwrap();
-    assert_eq!(counts, PlyCounts { points: 55, cameras: 3, skipped: 0 });
+    assert_eq!(counts, PlyCounts { points: 55, cameras: 3, planes: 0, anchors: 0, skipped: 0 });
     let text = String::from_utf8(ply).unwrap();
     let (header, body) = text.split_once("end_header\n").unwrap();
     assert!(header.starts_with("ply\nformat ascii 1.0\n"), "{header}");
