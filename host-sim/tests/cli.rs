@@ -642,6 +642,18 @@ fn a_map_saved_by_a_replay_reads_back_with_its_keyframes() {
     assert!(declared > keyframes + planes, "and the verification points");
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains(&format!("wrote {declared} vertices")), "{stdout}");
+
+    // Played again in the saved map: it starts with the keyframes and the planes, and says so.
+    let again = dir.path().join("again");
+    let args = ["replay", data.to_str().unwrap(), "--out", again.to_str().unwrap()];
+    let run = sim(&[&args[..], &["--load-map", map.to_str().unwrap(), "--localize"]].concat());
+    assert!(run.status.success(), "{}", stderr(&run));
+    let loaded = format!("map: {keyframes} keyframes, {planes} planes and 0 anchors loaded from ");
+    assert!(stderr(&run).contains(&loaded), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(again.join("report.json")).unwrap()).unwrap();
+    let expected = serde_json::json!({"keyframes": keyframes, "planes": planes, "anchors": 0});
+    assert_eq!(report["places"]["loaded"], expected);
 }
 
 /// A 10-frame recording written by `demo --write-dataset` into `dir`, in which colour image 3

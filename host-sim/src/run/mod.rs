@@ -50,7 +50,7 @@ pub use ar::{
 pub use data_path::{DataPathRun, FrameStats, Progress, data_path, drive, median};
 pub use map_points::MapCloud;
 pub use result::{
-    BackendReport, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
+    BackendReport, LoadedMap, PlacesReport, PlaneReport, PlanesReport, TrackedFrame, TrackingRun,
 };
 pub use slam::{MapScale, Schedule};
 pub use source::{ProfileSource, ProfileSourceError};

@@ -49,8 +49,11 @@ pub struct TrackedFrame {
 /// What the place memory did over a run (SLAM mode with places; `loops::PlaceStats`).
 #[derive(Debug, Clone, Serialize)]
 pub struct PlacesReport {
-    /// Records the long-term store holds at most (the board's).
+    /// Records the long-term store holds at most (the board's store less the slots kept for the
+    /// world's planes and anchors, `PlaceMemory::places_capacity`).
     pub store_capacity: usize,
+    /// The map the run started in (`--load-map`), `None` for a run that started empty.
+    pub loaded: Option<LoadedMap>,
     /// Records it held at the end.
     pub stored: usize,
     /// The place memory's counters (`remembered`, `thinned`, `too_few_points`, `store_errors`,
@@ -63,6 +66,17 @@ pub struct PlacesReport {
     pub loops: LoopStats,
     /// The frames (0-based, in the order played) on which a loop closed.
     pub loop_frames: Vec<usize>,
+}
+
+/// A saved map a run started in: what it held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct LoadedMap {
+    /// Remembered keyframes (place records).
+    pub keyframes: usize,
+    /// Planes, restored as the world's.
+    pub planes: usize,
+    /// Anchors (placed objects), restored.
+    pub anchors: usize,
 }
 
 /// What the back end did over a run (SLAM mode).

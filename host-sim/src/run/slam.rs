@@ -30,7 +30,9 @@ use super::ar::{ArFrame, ArPlan, ArRecorder, OnlineAnchors};
 use super::data_path::{Progress, drive};
 use super::map_points::MapPoints;
 use super::planes::KeyframePlanes;
-use super::result::{BackendReport, PlacesReport, TrackedFrame, TrackingRun, frame_figures};
+use super::result::{
+    BackendReport, LoadedMap, PlacesReport, TrackedFrame, TrackingRun, frame_figures,
+};
 use crate::trajectory::{StampedPose, Trajectory};
 
 /// A map of more than this many keyframes is a large one, where issue 4 (after the paper) wants
@@ -206,18 +208,19 @@ impl<P: ProfileTypes> Stepper<'_, P> {
 }
 
 /// Loads `maps.load` into the run's place memory (frozen when `maps.localize`), and the planes and
-/// anchors it holds into `slam`.
+/// anchors it holds into `slam`; returns what it held (`None`: no map loaded).
 fn load_map<P: ProfileTypes>(
     memory: &mut RunPlaces,
     slam: &mut Slam<P>,
     maps: &MapFiles,
-) -> Result<()> {
+) -> Result<Option<LoadedMap>> {
     let RunPlaces::On(m) = memory else {
         if maps.load.is_some() || maps.save.is_some() || maps.localize {
             bail!("map files need the place memory: drop --no-places");
         }
-        return Ok(());
+        return Ok(None);
     };
+    let mut loaded = None;
     if let Some(path) = &maps.load {
         let bytes =
             std::fs::read(path).with_context(|| format!("reading map {}", path.display()))?;
@@ -235,11 +238,12 @@ fn load_map<P: ProfileTypes>(
             m.len(),
             path.display()
         );
+        loaded = Some(LoadedMap { keyframes: m.len(), planes, anchors });
     } else if maps.localize {
         bail!("--localize needs a map to localize in (--load-map FILE)");
     }
     m.freeze(maps.localize);
-    Ok(())
+    Ok(loaded)
 }
 
 /// Saves the run's place memory to `maps.save`, with the active map's keyframes remembered
@@ -273,12 +277,17 @@ fn save_map<P: ProfileTypes>(
 
 /// What the place memory did over a run; the relocalized frames and those that closed a loop by
 /// their index in the order played.
-fn places_report(memory: &HostPlaces, per_frame: &[TrackedFrame]) -> PlacesReport {
+fn places_report(
+    memory: &HostPlaces,
+    loaded: Option<LoadedMap>,
+    per_frame: &[TrackedFrame],
+) -> PlacesReport {
     let frames = |which: fn(&TrackedFrame) -> bool| -> Vec<usize> {
         per_frame.iter().enumerate().filter(|(_, f)| which(f)).map(|(i, _)| i).collect()
     };
     PlacesReport {
-        store_capacity: BOARD_STORE_KEYFRAMES,
+        store_capacity: memory.places_capacity(),
+        loaded,
         stored: memory.len(),
         stats: memory.stats(),
         relocalized_frames: frames(|f| f.relocalized),
@@ -413,7 +422,7 @@ where
     } else {
         RunPlaces::Off(NoPlaces)
     };
-    load_map(&mut memory, &mut slam, maps)?;
+    let loaded = load_map(&mut memory, &mut slam, maps)?;
     let (mut online, mut per_frame, mut relative) = (Vec::new(), Vec::new(), Vec::new());
     let mut record = Record::default();
     let plane_params = PlaneParams { sensor: *frontend.sensor(), ..PlaneParams::DEFAULT };
@@ -493,7 +502,7 @@ where
     keyframes.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
     let stats = slam.frontend().stats();
     let places = match &memory {
-        RunPlaces::On(m) => Some(places_report(m, &per_frame)),
+        RunPlaces::On(m) => Some(places_report(m, loaded, &per_frame)),
         RunPlaces::Off(_) => None,
     };
     save_map(&mut memory, &slam, maps)?;
