@@ -88,12 +88,20 @@ struct Attached {
 #[derive(Debug, Clone, Default)]
 pub struct Anchors {
     items: Vec<Attached, MAX_ANCHORS>,
+    /// Calls that may have changed the anchors (wrapping): what tells a saved map they changed.
+    changes: u32,
 }
 
 impl Anchors {
     /// No anchors.
     pub const fn new() -> Self {
-        Self { items: Vec::new() }
+        Self { items: Vec::new(), changes: 0 }
+    }
+
+    /// Calls so far that may have changed the anchors (wrapping; it counts at least every
+    /// change, so an equal count means the same anchors): a save skips anchors it already holds.
+    pub fn changes(&self) -> u32 {
+        self.changes
     }
 
     /// The anchors `saved` by an earlier run ([`super::SavedWorld`]), in their order: of the
@@ -138,6 +146,7 @@ impl Anchors {
         (u, v): (f32, f32),
         frame: &PlacingFrame<'_>,
     ) -> Result<Anchor, AnchorError> {
+        self.changes = self.changes.wrapping_add(1);
         let anchor =
             Anchor::place(object, scale, (u, v), frame.depth, frame.cam, frame.t_wc, frame.planes)?;
         let attached = Attached { anchor, keyframe: frame.reference };
@@ -153,6 +162,7 @@ impl Anchors {
     /// # Errors
     /// [`AnchorError::InvalidScale`], [`AnchorError::UnknownObject`]: nothing changed.
     pub fn scale(&mut self, object: u16, scale: f32) -> Result<Anchor, AnchorError> {
+        self.changes = self.changes.wrapping_add(1);
         if !Anchor::is_valid_scale(scale) {
             return Err(AnchorError::InvalidScale);
         }
@@ -167,6 +177,7 @@ impl Anchors {
     /// # Errors
     /// [`AnchorError::UnknownObject`]: nothing was placed with that id.
     pub fn remove(&mut self, object: u16) -> Result<Anchor, AnchorError> {
+        self.changes = self.changes.wrapping_add(1);
         let k = self.items.iter().position(|a| a.anchor.object == object);
         let k = k.ok_or(AnchorError::UnknownObject)?;
         // Order kept: anchors are listed in the order they were first placed.
@@ -178,6 +189,7 @@ impl Anchors {
     /// `LoopClosure::correction` of the frame's result): moves every anchor whose keyframe
     /// `in_map` says the active map holds. Cost: one pose transform per anchor.
     pub fn correct(&mut self, correction: &Pose, in_map: impl Fn(KeyFrameId) -> bool) {
+        self.changes = self.changes.wrapping_add(1);
         for a in &mut self.items {
             if a.keyframe.is_some_and(&in_map) {
                 a.anchor.p_w = (correction * Point3::from(a.anchor.p_w)).coords.into();

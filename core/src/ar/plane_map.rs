@@ -74,12 +74,14 @@ pub struct PlaneMap {
     dropped: u32,
     /// The current track: tracking restarts so far.
     track: u16,
+    /// Calls that may have changed the planes (wrapping): what tells a saved map they changed.
+    changes: u32,
 }
 
 impl PlaneMap {
     /// An empty map (`const`, for a `static`).
     pub const fn new() -> Self {
-        Self { planes: Vec::new(), dropped: 0, track: 0 }
+        Self { planes: Vec::new(), dropped: 0, track: 0, changes: 0 }
     }
 
     /// A map of `planes` saved by an earlier run ([`super::SavedWorld`]): the remembered world,
@@ -106,9 +108,16 @@ impl PlaneMap {
 
     /// Forgets every plane.
     pub fn clear(&mut self) {
+        self.changes = self.changes.wrapping_add(1);
         self.planes.clear();
         self.dropped = 0;
         self.track = 0;
+    }
+
+    /// Calls so far that may have changed the planes (wrapping; it counts at least every change,
+    /// so an equal count means the same planes): a save skips planes it already holds.
+    pub fn changes(&self) -> u32 {
+        self.changes
     }
 
     /// The current track (tracking restarts so far).
@@ -128,6 +137,7 @@ impl PlaneMap {
     /// surface seen again, from the restarted map, before the loop). Cost: one pass over the
     /// planes per moved plane.
     pub fn correct(&mut self, t_new_old: &Pose, params: &PlaneMergeParams) {
+        self.changes = self.changes.wrapping_add(1);
         let track = self.track;
         for m in self.planes.iter_mut().filter(|m| m.track == track) {
             m.plane = m.plane.transformed(t_new_old);
@@ -152,6 +162,7 @@ impl PlaneMap {
     /// Takes `plane` (in the world frame): merged into the kept plane it is the same surface as
     /// (the closest, by centroid distance), or kept as a new one of the current track.
     pub fn observe(&mut self, plane: &Plane, params: &PlaneMergeParams) -> Observed {
+        self.changes = self.changes.wrapping_add(1);
         if let Some(i) = self.same_surface(plane, |_| true, params) {
             if let Some(m) = self.planes.get_mut(i) {
                 m.plane = merged(&m.plane, plane);

@@ -56,6 +56,12 @@ pub struct World<'a> {
 }
 
 impl World<'_> {
+    /// The planes' and anchors' change counts ([`PlaneMap::changes`], [`Anchors::changes`]):
+    /// equal counts of one system's world mean the same world.
+    pub fn changes(&self) -> (u32, u32) {
+        (self.planes.changes(), self.anchors.changes())
+    }
+
     /// Unit `unit` (`0..WORLD_UNITS`) of the saved world, into `buf`. Cost: one pass over the
     /// planes and anchors.
     pub fn encode(&self, unit: usize, buf: &mut RecordBytes) {

@@ -138,9 +138,12 @@ pub struct PlaceMemory<S> {
     frozen: bool,
     /// The creation number after every record's ([`Places::first_free_seq`]).
     next_seq: u32,
-    /// The first slot of the world units the store held when attached, until a record is
-    /// written over them ([`Self::held_world`]).
+    /// The first slot of the world units the store holds (as attached or last committed), until
+    /// a record is written over them ([`Self::held_world`]).
     world_at: Option<usize>,
+    /// The change counts of the world last committed there ([`World::changes`]); `None` when
+    /// unknown (attached or loaded).
+    world_saved: Option<(u32, u32)>,
 }
 
 /// Why [`PlaceMemory::save`] stopped.
@@ -184,6 +187,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             frozen: false,
             next_seq: 0,
             world_at: None,
+            world_saved: None,
         }
     }
 
@@ -198,6 +202,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         self.pending = None;
         self.len = self.store.held().min(self.store.capacity());
         self.world_at = None;
+        self.world_saved = None;
         if let Some(at) = self.len.checked_sub(WORLD_UNITS)
             && self.store.read(at, &mut self.buf).is_ok()
             && is_world_unit(&self.buf)
@@ -243,7 +248,9 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// Makes the records held, then `world`'s planes and anchors (in the [`WORLD_UNITS`] slots
     /// after them), the store's map as one step: on a flash store, what a boot finds after a
     /// power cut ([`KeyframeStore::commit`]). A save on a board is
-    /// `MapAccess::remember_all_in` then this.
+    /// `MapAccess::remember_all_in` then this. A world of the same system unchanged since the
+    /// last commit ([`World::changes`]) and still where it was is not written again, so a
+    /// periodic commit of an unchanged map writes nothing.
     ///
     /// # Errors
     /// The store's, counted in [`PlaceStats::store_errors`]; the last commit stands then.
@@ -251,15 +258,20 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         self.write_pending();
         let mut slots = self.len;
         if let Some(world) = world {
+            let held = self.world_at == Some(self.len) && self.world_saved == Some(world.changes());
             for unit in 0..WORLD_UNITS {
-                world.encode(unit, &mut self.buf);
-                if let Err(e) = self.store.write(slots, &self.buf) {
-                    self.stats.store_errors = self.stats.store_errors.saturating_add(1);
-                    return Err(e);
+                if !held {
+                    world.encode(unit, &mut self.buf);
+                    if let Err(e) = self.store.write(slots, &self.buf) {
+                        self.stats.store_errors = self.stats.store_errors.saturating_add(1);
+                        self.world_at = None;
+                        return Err(e);
+                    }
                 }
                 slots += 1;
             }
             self.world_at = Some(self.len);
+            self.world_saved = Some(world.changes());
         }
         let done = self.store.commit(slots);
         if done.is_err() {
@@ -329,6 +341,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         self.len = 0;
         self.next_seq = 0;
         self.world_at = None;
+        self.world_saved = None;
         for r in map_records(file) {
             self.buf.copy_from_slice(r);
             let Ok(record) = PlaceRecord::decode(&self.buf) else { continue };
@@ -407,6 +420,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         let Some(slot) = self.pending.take() else { return };
         if self.world_at.is_some_and(|at| (at..at + WORLD_UNITS).contains(&slot)) {
             self.world_at = None;
+            self.world_saved = None;
         }
         if self.store.write(slot, &self.buf).is_err() {
             self.stats.store_errors = self.stats.store_errors.saturating_add(1);

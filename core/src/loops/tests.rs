@@ -557,6 +557,10 @@ fn the_world_is_saved_and_committed_after_the_records_and_read_back_whole() {
     let mut memory = PlaceMemory::new(FlashStore::mount(SliceFlash::new(&mut image)).unwrap(), 1);
     memory.load(&file).unwrap();
     memory.commit(Some(&world)).unwrap();
+    // Committed again unchanged: nothing is written (a periodic commit spares the flash).
+    let before = memory.store().flash().bytes().to_vec();
+    memory.commit(Some(&world)).unwrap();
+    assert!(memory.store().flash().bytes() == &before[..], "an unchanged map writes nothing");
     let mut copy = memory.store().flash().bytes().to_vec();
     let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
     booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
@@ -575,6 +579,15 @@ fn the_world_is_saved_and_committed_after_the_records_and_read_back_whole() {
     damaged.attach(FlashStore::mount(SliceFlash::new(&mut flipped)).unwrap());
     assert_eq!(damaged.len(), 3);
     assert_eq!(damaged.held_world(), Some(Err(crate::ar::WorldError::Checksum)));
+    // An anchor scaled: the next commit writes the world again, and the boot finds the change.
+    let mut anchors = anchors.clone();
+    anchors.scale(7, 3.0).unwrap();
+    memory.commit(Some(&World { planes: &planes, anchors: &anchors })).unwrap();
+    let mut copy = memory.store().flash().bytes().to_vec();
+    let mut booted = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 1);
+    booted.attach(FlashStore::mount(SliceFlash::new(&mut copy)).unwrap());
+    let scaled = booted.held_world().unwrap().unwrap();
+    assert_eq!(scaled.anchors().iter().map(|a| a.scale).collect::<std::vec::Vec<_>>(), [3.0, 1.5]);
     // A record remembered over the world's first slot: it is no longer there to read.
     let (map, kf) = map_with(&scene(&mut rng, PLACE_POINTS), Pose::identity());
     booted.remember(&map, kf);

@@ -25,7 +25,8 @@ use crate::h7_flash::Bank2Flash;
 
 /// Frames between two commits of the place memory (about 10 s at 30 frames a second): a power cut
 /// loses at most the places remembered since the last one. A commit writes one table (1 KiB) when
-/// records changed, nothing otherwise.
+/// records changed, the world's two units (2 KiB) when its planes or anchors changed, nothing
+/// otherwise.
 const COMMIT_EVERY_FRAMES: u32 = 300;
 
 /// The place memory on flash bank 2 (1 MiB: 500 keyframes, the place memory's index).
@@ -137,10 +138,10 @@ fn main() -> ! {
         }
         frames = frames.wrapping_add(1);
         if frames.is_multiple_of(COMMIT_EVERY_FRAMES) {
-            // The keyframes the map has retired, then the planes and anchors, become what a boot
-            // finds (keyframes still in the active map are not written, to spare the flash). A
-            // failed commit is counted by the place memory (`PlaceStats::store_errors`); the
-            // last commit stands.
+            // The keyframes the map has retired, then the planes and anchors (when they changed),
+            // become what a boot finds (keyframes still in the active map are not written, to
+            // spare the flash). A failed commit is counted by the place memory
+            // (`PlaceStats::store_errors`); the last commit stands.
             let _ = pipeline.commit(places);
         }
     }
