@@ -31,6 +31,7 @@ use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::loops::PlaceMemory;
+use ferroslam_core::map::KeyframeStore;
 use ferroslam_core::persist::{FlashStore, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{
@@ -486,7 +487,19 @@ pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
         bail!("{} records in the flash image do not decode", memory.stats().store_errors);
     }
     let saved = memory.held_world().transpose().map_err(|e| anyhow!("flash image: {e}"))?;
-    let parts = saved.as_ref().map(SavedWorld::restored);
+    saved_map(&mut memory, saved.as_ref()).context("reading the flash image's map")
+}
+
+/// The map file `memory` saves, with `world` (planes and anchors read back) after its records:
+/// what a memory that loaded or booted that map saves again, byte for byte.
+///
+/// # Errors
+/// A record the store cannot give.
+pub fn saved_map<S: KeyframeStore>(
+    memory: &mut PlaceMemory<S>,
+    world: Option<&SavedWorld>,
+) -> Result<Vec<u8>> {
+    let parts = world.map(SavedWorld::restored);
     let world = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
     let mut file = Vec::new();
     memory
@@ -494,7 +507,7 @@ pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
             file.extend_from_slice(b);
             Ok(())
         })
-        .map_err(|e| anyhow!("reading the flash image's map: {e:?}"))?;
+        .map_err(|e| anyhow!("{e:?}"))?;
     Ok(file)
 }
 

@@ -23,7 +23,6 @@
 //! - `image`: the dataset loader's colour (to 8-bit gray) and depth (16-bit PNG) decoders on the
 //!   bytes, expecting the seeds' [`IMAGE_SIZE`].
 
-use std::convert::Infallible;
 use std::path::Path;
 
 use ferroslam_core::ar::{SavedWorld, World};
@@ -237,16 +236,7 @@ fn save_with<S: ferroslam_core::map::KeyframeStore>(
     memory: &mut PlaceMemory<S>,
     world: Option<&SavedWorld>,
 ) -> Result<Vec<u8>, String> {
-    let parts = world.map(SavedWorld::restored);
-    let world = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
-    let mut out = Vec::new();
-    memory
-        .save(world.as_ref(), |b| {
-            out.extend_from_slice(b);
-            Ok::<(), Infallible>(())
-        })
-        .map_err(|e| format!("{e:?}"))?;
-    Ok(out)
+    crate::replay::saved_map(memory, world).map_err(|e| format!("{e:#}"))
 }
 
 /// The wire frame of `m`.
