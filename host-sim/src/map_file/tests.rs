@@ -1,5 +1,5 @@
 //! Unit tests of [`super::MapFile`] on map files made from records here (a run's saved map is
-//! read in `tests/cli.rs`).
+//! read in `tests/cli_map.rs`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
