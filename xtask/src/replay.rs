@@ -26,26 +26,26 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
-use ferroslam_core::ar::{SavedWorld, World};
 use ferroslam_core::config::{QVGA, VGA};
-use ferroslam_core::frame::TelemetrySink;
 use ferroslam_core::geometry::PinholeCamera;
-use ferroslam_core::loops::PlaceMemory;
-use ferroslam_core::map::KeyframeStore;
-use ferroslam_core::persist::{FlashStore, SliceFlash};
 use ferroslam_core::tracking::FrontendWork;
-use ferroslam_core::wire::{
-    CommandMessage, FaultCode, Message, PoseFlags, PoseMessage, TrackingState,
-};
+use ferroslam_core::wire::{FaultCode, Message, PoseFlags, PoseMessage, TrackingState};
 use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::anchor_script::AnchorScript;
 use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
-use ferroslam_sim::map_file::MapFile;
 use ferroslam_sim::run::{self, ArPlan, RunOptions, TrackMode, TrackingRun};
-use ferroslam_sim::serial::{Capture, WireWriter, decode_capture, stamped_pose};
+use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
+
+mod saved;
+mod world;
+
+pub use saved::saved_map;
+use saved::{compare_saved_maps, place_store_address};
+pub use world::COMMANDS;
+use world::{compare_anchors, compare_planes, write_commands};
 
 use crate::cost::FirmwareRun;
 use crate::firmware::{self, decode_defmt, elf_sections, flash_and_ram};
@@ -308,207 +308,6 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
             bail!("the firmware's poses differ from the host's (first: {diff})")
         }
     }
-}
-
-/// The planes the firmware found as it ran (its log's `planes: N kept of D detections, X dropped,
-/// fingerprint F` line) against the host replay's (`planes.online` of its run): `Ok(summary)`
-/// when the same, `Err` naming both.
-fn compare_planes(log: &[String], host: &TrackingRun) -> Result<String> {
-    let (line, numbers) = logged_numbers(log, "planes: ")?;
-    let online = host.planes.as_ref().map(|p| &p.online).context("the host run has no planes")?;
-    let expected = [
-        online.planes as u64,
-        u64::from(online.detections),
-        u64::from(online.dropped),
-        u64::from(online.fingerprint),
-    ];
-    if numbers != expected {
-        bail!(
-            "the firmware's planes differ from the host's: firmware `{line}`, host {} kept of {} \
-             detections, {} dropped, fingerprint {}",
-            expected[0],
-            expected[1],
-            expected[2],
-            expected[3]
-        );
-    }
-    Ok(format!(
-        "planes found as it ran the same as the host's: {} kept of {} detections, fingerprint \
-         {:#010x}",
-        online.planes, online.detections, online.fingerprint
-    ))
-}
-
-/// The commands file of a replay with `--anchors`: the bytes the board's serial link receives.
-pub const COMMANDS: &str = "commands.bin";
-
-/// Writes `script`'s steps as the host sends them to the board: one wire frame of a
-/// [`CommandMessage`] per step, in order.
-fn write_commands(script: &AnchorScript, path: &Path) -> Result<()> {
-    let mut wire = WireWriter::new(Vec::new());
-    for step in &script.steps {
-        let frame_index = u32::try_from(step.frame).context("a script frame past u32")?;
-        wire.send(&Message::Command(CommandMessage { frame_index, command: step.command }))
-            .context("encoding a command")?;
-    }
-    fs::write(path, wire.into_inner()).with_context(|| format!("writing {}", path.display()))
-}
-
-/// The anchors the firmware placed against the host replay's (`ar.online` of its run): the
-/// anchor messages of the last frame, bit for bit, the commands refused (its `Command` faults:
-/// frame and error code), and its log's `anchors: N placed, fingerprint F` line. `Ok(summary)`
-/// when all agree.
-fn compare_anchors(log: &[String], capture: &Capture, host: &TrackingRun) -> Result<String> {
-    let online = host
-        .ar
-        .as_ref()
-        .and_then(|a| a.online.as_ref())
-        .context("the host run applied no anchor commands")?;
-    let last = capture.poses().last().map_or(0, |p| p.frame_index);
-    let board: Vec<[u32; 8]> = capture
-        .messages
-        .iter()
-        .filter_map(|m| match m {
-            Message::Anchor(a) if a.frame_index == last => {
-                Some(anchor_bits(a.object, a.position_m, a.up, a.scale))
-            }
-            _ => None,
-        })
-        .collect();
-    let expected: Vec<[u32; 8]> =
-        online.anchors.iter().map(|a| anchor_bits(a.object, a.position_m, a.up, a.scale)).collect();
-    if board != expected {
-        bail!(
-            "the firmware's anchors after frame {last} differ from the host's: firmware \
-             {board:?}, host {expected:?} (object, then position, up and scale as f32 bits)"
-        );
-    }
-    let refused: Vec<(usize, u32)> = capture
-        .messages
-        .iter()
-        .filter_map(|m| match m {
-            Message::Fault(f) if f.code == FaultCode::Command => {
-                Some((f.frame_index as usize, f.detail))
-            }
-            _ => None,
-        })
-        .collect();
-    let host_refused: Vec<(usize, u32)> =
-        online.refused.iter().map(|r| (r.frame, r.code)).collect();
-    if refused != host_refused {
-        bail!(
-            "the firmware refused other commands than the host: firmware {refused:?}, host \
-             {host_refused:?} (frame, error code)"
-        );
-    }
-    let (line, numbers) = logged_numbers(log, "anchors: ")?;
-    let logged = [online.anchors.len() as u64, u64::from(online.fingerprint)];
-    if numbers != logged {
-        bail!("the firmware logged `anchors: {line}`, the host has {logged:?}");
-    }
-    Ok(format!(
-        "anchors the same as the host's: {} commands applied, {} refused (the same frames and \
-         errors), {} anchors at the end, bit for bit, fingerprint {:#010x}",
-        online.applied,
-        online.refused.len(),
-        online.anchors.len(),
-        online.fingerprint
-    ))
-}
-
-/// The firmware log's first line holding `prefix`: what follows it, and the numbers in that.
-fn logged_numbers<'a>(log: &'a [String], prefix: &str) -> Result<(&'a str, Vec<u64>)> {
-    let line = log
-        .iter()
-        .find_map(|l| l.split(prefix).nth(1))
-        .ok_or_else(|| anyhow!("the firmware logged no `{}` line", prefix.trim_end()))?;
-    let numbers =
-        line.split(|c: char| !c.is_ascii_digit()).filter_map(|w| w.parse().ok()).collect();
-    Ok((line, numbers))
-}
-
-/// An anchor's object id and float fields as bits.
-fn anchor_bits(object: u16, position: [f32; 3], up: [f32; 3], scale: f32) -> [u32; 8] {
-    let [x, y, z] = position.map(f32::to_bits);
-    let [a, b, c] = up.map(f32::to_bits);
-    [u32::from(object), x, y, z, a, b, c, scale.to_bits()]
-}
-
-/// The address of the firmware's flash region for the long-term store (`__place_store_start`
-/// of memory-qemu-mps2.x), where a flash image is loaded for a second boot.
-fn place_store_address(elf: &Path) -> Result<u64> {
-    let symbols = firmware::nm(elf, &[])?;
-    symbols
-        .lines()
-        .find(|l| l.ends_with(" __place_store_start"))
-        .and_then(|l| u64::from_str_radix(l.split_whitespace().next()?, 16).ok())
-        .ok_or_else(|| anyhow!("no __place_store_start symbol in {}", elf.display()))
-}
-
-/// The map in the firmware's flash image (`flash.bin`: what a boot on it finds, written as a map
-/// file) against the host's saved map (`host-map.fsmp`), byte for byte: `Ok(summary)` when
-/// equal, `Err` naming the first differing byte.
-fn compare_saved_maps(out: &Path) -> Result<Result<String>> {
-    let mut image = fs::read(out.join(FLASH_IMAGE))
-        .with_context(|| format!("the firmware wrote no {FLASH_IMAGE}"))?;
-    let board = map_in_flash_image(&mut image)?;
-    let host = fs::read(out.join(HOST_MAP)).with_context(|| format!("reading {HOST_MAP}"))?;
-    if board == host {
-        let map = MapFile::from_bytes(&board).context("the board's map")?;
-        let (planes, anchors) =
-            map.world.as_ref().map_or((0, 0), |w| (w.planes().len(), w.anchors().len()));
-        return Ok(Ok(format!(
-            "the map in the board's flash image is the host's byte for byte ({} keyframes, \
-             {planes} planes, {anchors} anchors, {} bytes as a map file)",
-            map.records.len(),
-            board.len()
-        )));
-    }
-    let at =
-        board.iter().zip(&host).position(|(a, b)| a != b).unwrap_or(board.len().min(host.len()));
-    fs::write(out.join("board-map.fsmp"), &board)?;
-    Ok(Err(anyhow!(
-        "the board's saved map differs from the host's: {} against {} bytes, first difference at \
-         byte {at} (board-map.fsmp and {HOST_MAP} in {})",
-        board.len(),
-        host.len(),
-        out.display()
-    )))
-}
-
-/// The map a boot on the flash image `image` finds, as a map file ([`ferroslam_core::persist`]):
-/// its records, then its planes and anchors when it holds them.
-pub fn map_in_flash_image(image: &mut [u8]) -> Result<Vec<u8>> {
-    let store = FlashStore::mount(SliceFlash::new(image))
-        .map_err(|e| anyhow!("mounting the flash image: {e:?}"))?;
-    let mut memory = PlaceMemory::new(FlashStore::unmounted(SliceFlash::empty()), 0);
-    memory.attach(store);
-    if memory.stats().store_errors > 0 {
-        bail!("{} records in the flash image do not decode", memory.stats().store_errors);
-    }
-    let saved = memory.held_world().transpose().map_err(|e| anyhow!("flash image: {e}"))?;
-    saved_map(&mut memory, saved.as_ref()).context("reading the flash image's map")
-}
-
-/// The map file `memory` saves, with `world` (planes and anchors read back) after its records:
-/// what a memory that loaded or booted that map saves again, byte for byte.
-///
-/// # Errors
-/// A record the store cannot give.
-pub fn saved_map<S: KeyframeStore>(
-    memory: &mut PlaceMemory<S>,
-    world: Option<&SavedWorld>,
-) -> Result<Vec<u8>> {
-    let parts = world.map(SavedWorld::restored);
-    let world = parts.as_ref().map(|(planes, anchors)| World { planes, anchors });
-    let mut file = Vec::new();
-    memory
-        .save(world.as_ref(), |b: &[u8]| -> Result<(), std::convert::Infallible> {
-            file.extend_from_slice(b);
-            Ok(())
-        })
-        .map_err(|e| anyhow!("{e:?}"))?;
-    Ok(file)
 }
 
 /// Writes the dataset's frames at sensor resolution as raw frame files back to back.
