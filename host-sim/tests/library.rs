@@ -4,7 +4,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
 use ferroslam_sim::dataset::{CalibrationSource, DatasetOptions};
@@ -15,6 +17,8 @@ use ferroslam_sim::run::TrackMode;
 use ferroslam_sim::synth::SynthOptions;
 use serde_json::Value;
 
+use common::seven_scenes;
+
 fn sim(args: &[&str]) {
     let run = Command::new(env!("CARGO_BIN_EXE_ferroslam-sim")).args(args).output().unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
@@ -22,10 +26,6 @@ fn sim(args: &[&str]) {
 
 fn manifest_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn seven_scenes() -> PathBuf {
-    manifest_dir().join("../../shared/datasets/7scenes-redkitchen-1000")
 }
 
 /// `dir/report.json` without its wall-clock figures (`host_cost`, `per_frame[].process_us`),

@@ -4,11 +4,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
-use std::process::{Command, Output};
 
 use ferroslam_sim::dataset::mcap::messages::{
     CAMERA_INFO, CameraInfoMsg, IMAGE, ImageMsg, Stamp, schema_text,
@@ -20,9 +21,7 @@ use ferroslam_sim::replay::{ReplayOptions, replay};
 use ferroslam_sim::run::TrackMode;
 use ferroslam_sim::synth::SynthOptions;
 
-fn sim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ferroslam-sim")).args(args).output().expect("the binary runs")
-}
+use common::sim;
 
 /// A 30-frame demo sequence written as a TUM folder into `dir`.
 fn demo_folder(dir: &Path) {

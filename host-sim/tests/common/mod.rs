@@ -1,4 +1,4 @@
-//! Helpers shared by the `cli_*` tests, which run the `ferroslam-sim` binary as a user runs it.
+//! Helpers shared by the integration tests that run the `ferroslam-sim` binary as a user runs it.
 
 #![allow(dead_code)] // each test file is its own crate and uses only some of these
 
