@@ -191,8 +191,8 @@ pub(crate) struct Scene {
 }
 
 /// The vector with `sign` on `axis` and zeros elsewhere, built in registers: written into a zeroed
-/// array at a variable index, it was read back across that store (a store-forwarding stall that
-/// cost about a tenth of the render loop's time).
+/// array at a variable index and read back whole, it waits for that store on every ray
+/// (docs/decisions.md, "The demo's renderer").
 #[inline]
 fn axis_vector(axis: usize, sign: f64) -> [f64; 3] {
     [0, 1, 2].map(|a| if a == axis { sign } else { 0.0 })
