@@ -65,8 +65,9 @@ pub struct Report {
     /// Loops: keyframes that looked for one (`queries`), loops verified (`detected`), those that
     /// moved the map (`accepted`), those that agreed with it within a verification's accuracy
     /// (`consistent`), those that disagreed with a map tracked without a restart since and were
-    /// not applied (`held`), queries refused as ambiguous (`rejected`), and the frames (0-based,
-    /// in the order played) of the accepted ones; null without a place memory.
+    /// not applied alone (`held`), the accepted ones that were the last of such held loops in a
+    /// row that agreed (`confirmed`), queries refused as ambiguous (`rejected`), and the frames
+    /// (0-based, in the order played) of the accepted ones; null without a place memory.
     pub loops: Option<Loops>,
     /// The place memory's figures (SLAM mode with places).
     #[serde(skip_serializing_if = "Option::is_none")]

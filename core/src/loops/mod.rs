@@ -18,7 +18,11 @@
 //!   ambiguous scene: nothing is returned). A false relocalization is worse than a missed one.
 //!
 //! - **Close a loop** (a new keyframe, see [`Places::close_loop`]): the same query, with the
-//!   active map's keyframes made after tracking last restarted left out.
+//!   active map's keyframes made after tracking last restarted left out. A verified correction
+//!   of at least [`LOOP_MIN_CORRECTION_M`] or [`LOOP_MIN_CORRECTION_RAD`] moves the map: at once
+//!   when tracking restarted after the place was seen, else (the map was tracked through since)
+//!   once [`HELD_LOOP_CONFIRMATIONS`] loops in a row of [`HELD_MIN_CORRECTION_M`] or
+//!   [`HELD_MIN_CORRECTION_RAD`] agree.
 //!
 //! Cost: a query passes over the index once, decodes [`SHORTLIST`] records and [`CANDIDATES`]
 //! of them again, whatever the store holds; each verification is bounded by [`PLACE_POINTS`] x
@@ -77,6 +81,28 @@ pub const LOOP_MIN_CORRECTION_M: f32 = 0.10;
 /// See [`LOOP_MIN_CORRECTION_M`] (radians, about 5 degrees).
 pub const LOOP_MIN_CORRECTION_RAD: f32 = 0.087;
 
+/// A loop held against a map tracked without a restart (see [`LoopStats::held`]) is applied
+/// once this many held loops in a row, each of [`HELD_MIN_CORRECTION_M`] or more, agree (within [`HELD_AGREE_M`] and [`HELD_AGREE_RAD`]):
+/// one view's verified pose may be a few centimetres off, so one is not trusted over the tracked
+/// chain, but several independent views that agree on a correction over the loop threshold show
+/// drift the chain has accumulated (ORB-SLAM likewise waits for three consistent loop
+/// candidates). Why three: docs/decisions.md, "Held loops applied once confirmed".
+pub const HELD_LOOP_CONFIRMATIONS: u8 = 3;
+/// A held loop counts towards [`HELD_LOOP_CONFIRMATIONS`] only when its correction is at least
+/// this (metres) or [`HELD_MIN_CORRECTION_RAD`]: twice the loop threshold, as remembered places
+/// of one real recording disagree with each other by up to about 14 cm (docs/decisions.md, "Held
+/// loops applied once confirmed"), and a map tracked through is not moved by less.
+pub const HELD_MIN_CORRECTION_M: f32 = 2.0 * LOOP_MIN_CORRECTION_M;
+/// See [`HELD_MIN_CORRECTION_M`] (radians, about 10 degrees).
+pub const HELD_MIN_CORRECTION_RAD: f32 = 2.0 * LOOP_MIN_CORRECTION_RAD;
+/// Two held corrections agree when they put the new keyframe this close (metres) ...
+pub const HELD_AGREE_M: f32 = 0.05;
+/// ... and turned this close (radians, about 2 degrees).
+pub const HELD_AGREE_RAD: f32 = 0.035;
+/// Held loops in a row are those of keyframes at most this many creation numbers apart; a longer
+/// gap starts the count again.
+pub const HELD_MAX_GAP: u32 = 8;
+
 /// What loop detection did, counted since the place memory was made (serializable for reports).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -90,8 +116,11 @@ pub struct LoopStats {
     /// Loops detected that agreed with the map within a verification's accuracy.
     pub consistent: u32,
     /// Loops detected that disagreed with a map tracked without a restart since the place was
-    /// seen: not applied (the tracked chain is trusted over one view's pose).
+    /// seen: not applied alone (the tracked chain is trusted over one view's pose).
     pub held: u32,
+    /// Of the accepted loops, those of a map tracked without a restart: the last of
+    /// [`HELD_LOOP_CONFIRMATIONS`] held loops in a row that agreed.
+    pub confirmed: u32,
     /// Queries refused because two places verified different poses.
     pub rejected: u32,
 }
@@ -144,6 +173,17 @@ pub struct PlaceMemory<S> {
     /// The change counts of the world last committed there ([`World::changes`]); `None` when
     /// unknown (attached or loaded).
     world_saved: Option<(u32, u32)>,
+    /// The last held loop (its correction and keyframe creation number) and how many held loops
+    /// in a row agreed with it, itself included ([`HELD_LOOP_CONFIRMATIONS`]).
+    held_run: Option<HeldRun>,
+}
+
+/// Held loops in a row that agree (see [`PlaceMemory`]'s `held_run`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeldRun {
+    correction: Pose,
+    keyframe_seq: u32,
+    count: u8,
 }
 
 /// Why [`PlaceMemory::save`] stopped.
@@ -179,6 +219,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
                 accepted: 0,
                 consistent: 0,
                 held: 0,
+                confirmed: 0,
                 rejected: 0,
             },
             index: [KeyBits([0; KEY_BITS_WORDS]); INDEXED_RECORDS],
@@ -188,6 +229,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             next_seq: 0,
             world_at: None,
             world_saved: None,
+            held_run: None,
         }
     }
 
@@ -200,6 +242,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     pub fn attach(&mut self, store: S) {
         self.store = store;
         self.pending = None;
+        self.held_run = None;
         self.len = self.store.held().min(self.store.capacity());
         self.world_at = None;
         self.world_saved = None;
@@ -338,6 +381,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         check_map_file(file, self.places_capacity())?;
         let world = map_world(file)?;
         self.pending = None;
+        self.held_run = None;
         self.len = 0;
         self.next_seq = 0;
         self.world_at = None;
@@ -559,14 +603,25 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         let d = correction.translation.vector.norm();
         if d < LOOP_MIN_CORRECTION_M && correction.rotation.angle() < LOOP_MIN_CORRECTION_RAD {
             self.loops.consistent = self.loops.consistent.saturating_add(1);
+            self.held_run = None;
             return None;
         }
         if record_seq >= track_start {
             // Tracked without a restart since that place: the map's own chain is trusted over
-            // one view's verified pose.
+            // one view's verified pose, until enough views in a row agree.
             self.loops.held = self.loops.held.saturating_add(1);
-            return None;
+            let large = d >= HELD_MIN_CORRECTION_M
+                || correction.rotation.angle() >= HELD_MIN_CORRECTION_RAD;
+            if !large {
+                self.held_run = None;
+                return None;
+            }
+            if !self.confirm_held(correction, seq, &t_wc_now) {
+                return None;
+            }
+            self.loops.confirmed = self.loops.confirmed.saturating_add(1);
         }
+        self.held_run = None;
         self.loops.accepted = self.loops.accepted.saturating_add(1);
         Some(LoopClosure { record_seq, record_timestamp_s, keyframe_seq: seq, correction })
     }
@@ -594,6 +649,28 @@ enum Located {
 }
 
 impl<S: KeyframeStore> PlaceMemory<S> {
+    /// Counts a held loop of keyframe `seq` (at `t_wc_now`) with `correction` into the run of
+    /// agreeing ones; whether the run reached [`HELD_LOOP_CONFIRMATIONS`]. Corrections are
+    /// compared by where they put the keyframe (its position and orientation), not as world
+    /// motions: a small turn about a far origin moves the world a lot and the keyframe little.
+    fn confirm_held(&mut self, correction: Pose, seq: u32, t_wc_now: &Pose) -> bool {
+        let agrees = self.held_run.is_some_and(|run| {
+            let a = correction * t_wc_now;
+            let b = run.correction * t_wc_now;
+            let moved = (a.translation.vector - b.translation.vector).norm();
+            let turned = (a.rotation * b.rotation.inverse()).angle();
+            seq.wrapping_sub(run.keyframe_seq) <= HELD_MAX_GAP
+                && moved <= HELD_AGREE_M
+                && turned <= HELD_AGREE_RAD
+        });
+        let count = match self.held_run {
+            Some(run) if agrees => run.count.saturating_add(1),
+            _ => 1,
+        };
+        self.held_run = Some(HeldRun { correction, keyframe_seq: seq, count });
+        count >= HELD_LOOP_CONFIRMATIONS
+    }
+
     /// Ranks the `candidates` by key distance to the query's, verifies the [`CANDIDATES`]
     /// nearest, and returns the best verified pose unless a rival verifies a different one
     /// nearly as well (see the module documentation).

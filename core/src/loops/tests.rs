@@ -298,6 +298,69 @@ fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_re
     assert_eq!(memory.loop_stats().held, 1);
 }
 
+/// A keyframe of creation number `seq` at `t_wc`, alone in a map.
+fn keyframe_numbered(seq: u32, t_wc: Pose) -> (Map<4, 128>, KeyFrameId) {
+    let mut map = Map::new();
+    map.number_from(seq);
+    let kf = map.add_keyframe(t_wc, 1.0).unwrap();
+    (map, kf)
+}
+
+#[test]
+fn held_loops_are_applied_once_enough_in_a_row_agree() {
+    let mut rng = TestRng::new(13);
+    let place = scene(&mut rng, PLACE_POINTS);
+    let t_wk = pose([1.0, 0.0, 0.5], [0.0, 0.4, 0.0]);
+    let (old, kf) = map_with(&place, t_wk);
+    let t_kq = pose([0.05, 0.02, 0.1], [0.0, 0.06, 0.0]);
+    let truth = t_wk * t_kq;
+    let points = query_of(&mut rng, &place, &t_kq, 2, 80);
+    let drift = pose([0.25, -0.1, 0.05], [0.0, 0.1, 0.02]);
+    // Another drift, 10 cm from it: a held loop that does not agree.
+    let other = pose([0.35, -0.1, 0.05], [0.0, 0.1, 0.02]);
+    // Over the loop threshold, under the held one: held, never applied.
+    let small = pose([0.12, 0.0, 0.0], [0.0, 0.0, 0.0]);
+    let run = |memory: &mut PlaceMemory<RamStore<4>>, steps: &[(u32, Pose)]| {
+        steps
+            .iter()
+            .map(|&(seq, d)| {
+                let (now, new_kf) = keyframe_numbered(seq, d * truth);
+                // Tracked since creation number 0 with no restart: every loop is held first.
+                memory.close_loop(&query(&points), &now, new_kf, 0)
+            })
+            .collect::<std::vec::Vec<_>>()
+    };
+    let confirmations = usize::from(HELD_LOOP_CONFIRMATIONS);
+
+    // Agreeing held loops on consecutive keyframes: the last of them is applied, and undoes the
+    // drift.
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
+    memory.remember(&old, kf);
+    let steps: std::vec::Vec<_> = (0..confirmations as u32).map(|i| (10 + i, drift)).collect();
+    let closures = run(&mut memory, &steps);
+    assert!(closures[..confirmations - 1].iter().all(Option::is_none));
+    let c = closures[confirmations - 1].expect("applied once confirmed");
+    assert!((c.correction * drift).translation.vector.norm() < 5e-3);
+    let s = memory.loop_stats();
+    let held = HELD_LOOP_CONFIRMATIONS.into();
+    assert_eq!((s.held, s.accepted, s.confirmed), (held, 1, 1));
+
+    // A disagreeing one in between, or a gap of more than `HELD_MAX_GAP` keyframes, starts the
+    // count again, and corrections under `HELD_MIN_CORRECTION_M` do not count: nothing is
+    // applied.
+    for steps in [
+        [(10, drift), (11, other), (12, drift)],
+        [(10, drift), (11, drift), (12 + HELD_MAX_GAP, drift)],
+        [(10, small), (11, small), (12, small)],
+    ] {
+        let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
+        memory.remember(&old, kf);
+        assert!(run(&mut memory, &steps).iter().all(Option::is_none), "{steps:?}");
+        let s = memory.loop_stats();
+        assert_eq!((s.detected, s.held, s.accepted), (3, 3, 0), "{steps:?}");
+    }
+}
+
 #[test]
 fn a_loop_is_looked_for_in_the_map_only_before_tracking_last_restarted() {
     let mut rng = TestRng::new(12);
