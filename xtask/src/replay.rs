@@ -2,7 +2,9 @@
 //! against the host replay, pose by pose, bit by bit.
 //!
 //! 1. Writes the first N frames of DATASET at the sensor's resolution (VGA) as raw frame files
-//!    back to back (`frames.fsrs`), decoded by the host simulator's dataset loader.
+//!    back to back (`frames.fsrs`), decoded by the host simulator's dataset loader. The board
+//!    sizes that file with semihosting's 32-bit `SYS_FLEN`, so at most 4 GiB of frames (4,660 at
+//!    VGA) are played; more is refused before anything is written.
 //! 2. Builds the firmware and boots `qemu-mps2` on them (`firmware::run_qemu`): it streams each
 //!    frame into its QVGA store two rows at a time, runs the pipeline and sends pose and cost
 //!    messages out of UART0 (`uart.bin`).
@@ -21,7 +23,6 @@
 
 use std::fmt::Display;
 use std::fs;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -30,7 +31,6 @@ use ferroslam_core::config::{QVGA, VGA};
 use ferroslam_core::geometry::PinholeCamera;
 use ferroslam_core::tracking::FrontendWork;
 use ferroslam_core::wire::{FaultCode, Message, PoseFlags, PoseMessage, TrackingState};
-use ferroslam_firmware::frame_file::{FrameHeader, write_frame};
 use ferroslam_sim::anchor_script::AnchorScript;
 use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
@@ -39,6 +39,7 @@ use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
 use ferroslam_sim::trajectory::Trajectory;
 use serde_json::json;
 
+mod frames;
 mod saved;
 mod world;
 
@@ -188,7 +189,7 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
     };
     let sensor = Dataset::open(&opts.dataset, &vga)?;
     let frames = sensor.len();
-    write_frames(&sensor, &out.join("frames.fsrs"))?;
+    frames::write_frames(&sensor, &out.join("frames.fsrs"))?;
     drop(sensor);
 
     let qvga = DatasetOptions { profile: QVGA, ..vga };
@@ -308,24 +309,6 @@ pub fn run(root: &Path, opts: &ReplayOptions) -> Result<()> {
             bail!("the firmware's poses differ from the host's (first: {diff})")
         }
     }
-}
-
-/// Writes the dataset's frames at sensor resolution as raw frame files back to back.
-fn write_frames(dataset: &Dataset, path: &Path) -> Result<()> {
-    let file = fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = BufWriter::new(file);
-    for i in 0..dataset.len() {
-        let f = dataset.load_frame(i)?;
-        let header = FrameHeader {
-            width: u32::try_from(f.width)?,
-            height: u32::try_from(f.height)?,
-            depth_scale: f.depth_scale,
-            timestamp_s: f.timestamp_s,
-        };
-        write_frame(&header, &f.gray, &f.depth, |b| w.write_all(b))
-            .map_err(|e| anyhow!("frame {i}: {e:?}"))?;
-    }
-    w.flush().with_context(|| format!("writing {}", path.display()))
 }
 
 /// A capture is usable when nothing was dropped and the firmware reported no fault.
