@@ -82,11 +82,11 @@ pub const LOOP_MIN_CORRECTION_M: f32 = 0.10;
 pub const LOOP_MIN_CORRECTION_RAD: f32 = 0.087;
 
 /// A loop held against a map tracked without a restart (see [`LoopStats::held`]) is applied
-/// once this many held loops in a row, each of [`HELD_MIN_CORRECTION_M`] or more, agree (within [`HELD_AGREE_M`] and [`HELD_AGREE_RAD`]):
-/// one view's verified pose may be a few centimetres off, so one is not trusted over the tracked
-/// chain, but several independent views that agree on a correction over the loop threshold show
-/// drift the chain has accumulated (ORB-SLAM likewise waits for three consistent loop
-/// candidates). Why three: docs/decisions.md, "Held loops applied once confirmed".
+/// once this many held loops in a row, each of [`HELD_MIN_CORRECTION_M`] or more, agree (within
+/// [`HELD_AGREE_M`] and [`HELD_AGREE_RAD`]): one view's verified pose may be a few centimetres
+/// off, so one is not trusted over the tracked chain, but several views that agree on a large
+/// correction show drift the chain has accumulated (ORB-SLAM likewise waits for three consistent
+/// loop candidates). Why: docs/decisions.md, "Held loops applied once confirmed".
 pub const HELD_LOOP_CONFIRMATIONS: u8 = 3;
 /// A held loop counts towards [`HELD_LOOP_CONFIRMATIONS`] only when its correction is at least
 /// this (metres) or [`HELD_MIN_CORRECTION_RAD`]: twice the loop threshold, as remembered places
