@@ -18,7 +18,8 @@
 //! start, and a lap lost there relocalized or loop-closed; the place memory's records never fewer
 //! and never over its capacity (full, it thins: its steady state); no store error; every pose
 //! decoded from the link. Measured, not a bar: each lap's position error after the first lap's
-//! SE(3) alignment to the ground truth, which shows drift the laps do not take out. Cost per
+//! SE(3) alignment to the ground truth, which shows the drift the laps leave (loops to places of
+//! the same track move the map only for 20 cm or more: `loops::HELD_MIN_CORRECTION_M`). Cost per
 //! frame is not measured here (the host does not count instructions): the instruction budgets are
 //! `cargo xtask budgets`' (QEMU), on 7-Scenes and the fast demo.
 
