@@ -600,8 +600,8 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.loops.detected = self.loops.detected.saturating_add(1);
         // New world from old: what moves the keyframe to where the place puts it.
         let correction = t_wc * t_wc_now.inverse();
-        let d = correction.translation.vector.norm();
-        if d < LOOP_MIN_CORRECTION_M && correction.rotation.angle() < LOOP_MIN_CORRECTION_RAD {
+        let (d, angle) = (correction.translation.vector.norm(), correction.rotation.angle());
+        if d < LOOP_MIN_CORRECTION_M && angle < LOOP_MIN_CORRECTION_RAD {
             self.loops.consistent = self.loops.consistent.saturating_add(1);
             self.held_run = None;
             return None;
@@ -610,9 +610,7 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
             // Tracked without a restart since that place: the map's own chain is trusted over
             // one view's verified pose, until enough views in a row agree.
             self.loops.held = self.loops.held.saturating_add(1);
-            let large = d >= HELD_MIN_CORRECTION_M
-                || correction.rotation.angle() >= HELD_MIN_CORRECTION_RAD;
-            if !large {
+            if d < HELD_MIN_CORRECTION_M && angle < HELD_MIN_CORRECTION_RAD {
                 self.held_run = None;
                 return None;
             }

@@ -263,18 +263,24 @@ fn a_place_with_a_moved_part_is_refused_unless_the_part_is_small() {
     assert!(err.translation.vector.norm() < 5e-3, "{err}");
 }
 
-#[test]
-fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_resolves() {
-    let mut rng = TestRng::new(10);
+/// A place remembered from a keyframe (the map holding it, and the keyframe) and the camera
+/// back near it: its true pose and what it sees of the place (`seed` draws both).
+fn revisit(seed: u64) -> (Map<4, 128>, KeyFrameId, Pose, Vec<QueryPoint, 512>) {
+    let mut rng = TestRng::new(seed);
     let place = scene(&mut rng, PLACE_POINTS);
     let t_wk = pose([1.0, 0.0, 0.5], [0.0, 0.4, 0.0]);
     let (old, kf) = map_with(&place, t_wk);
+    let t_kq = pose([0.05, 0.02, 0.1], [0.0, 0.06, 0.0]);
+    let points = query_of(&mut rng, &place, &t_kq, 2, 80);
+    (old, kf, t_wk * t_kq, points)
+}
+
+#[test]
+fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_resolves() {
+    let (old, kf, truth, points) = revisit(10);
     let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
     memory.remember(&old, kf);
     // The camera back near the remembered keyframe, where the map has drifted by `drift`.
-    let t_kq = pose([0.05, 0.02, 0.1], [0.0, 0.06, 0.0]);
-    let truth = t_wk * t_kq;
-    let points = query_of(&mut rng, &place, &t_kq, 2, 80);
     for (drift, closes) in [
         (pose([0.25, -0.1, 0.05], [0.0, 0.1, 0.02]), true),
         (pose([0.01, 0.0, 0.0], [0.0, 0.002, 0.0]), false),
@@ -308,13 +314,7 @@ fn keyframe_numbered(seq: u32, t_wc: Pose) -> (Map<4, 128>, KeyFrameId) {
 
 #[test]
 fn held_loops_are_applied_once_enough_in_a_row_agree() {
-    let mut rng = TestRng::new(13);
-    let place = scene(&mut rng, PLACE_POINTS);
-    let t_wk = pose([1.0, 0.0, 0.5], [0.0, 0.4, 0.0]);
-    let (old, kf) = map_with(&place, t_wk);
-    let t_kq = pose([0.05, 0.02, 0.1], [0.0, 0.06, 0.0]);
-    let truth = t_wk * t_kq;
-    let points = query_of(&mut rng, &place, &t_kq, 2, 80);
+    let (old, kf, truth, points) = revisit(13);
     let drift = pose([0.25, -0.1, 0.05], [0.0, 0.1, 0.02]);
     // Another drift, 10 cm from it: a held loop that does not agree.
     let other = pose([0.35, -0.1, 0.05], [0.0, 0.1, 0.02]);

@@ -35,9 +35,7 @@ fn check_frames_file(len: usize, frames: usize, size: (usize, usize)) -> Result<
 /// Writes the dataset's frames at sensor resolution as raw frame files back to back; refuses,
 /// before writing, more than [`MAX_FRAMES_FILE_BYTES`] (a dataset's frames are all one size).
 pub(super) fn write_frames(dataset: &Dataset, path: &Path) -> Result<()> {
-    let file = fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = BufWriter::new(file);
-    for i in 0..dataset.len() {
+    let header_of = |i: usize| -> Result<_> {
         let f = dataset.load_frame(i)?;
         let header = FrameHeader {
             width: u32::try_from(f.width)?,
@@ -45,14 +43,17 @@ pub(super) fn write_frames(dataset: &Dataset, path: &Path) -> Result<()> {
             depth_scale: f.depth_scale,
             timestamp_s: f.timestamp_s,
         };
-        if i == 0 {
-            let len = header.file_len().map_err(|e| anyhow!("frame {i}: {e:?}"))?;
-            if let Err(e) = check_frames_file(len, dataset.len(), (f.width, f.height)) {
-                drop(w);
-                let _ = fs::remove_file(path);
-                return Err(e);
-            }
-        }
+        Ok((f, header))
+    };
+    if !dataset.is_empty() {
+        let (f, header) = header_of(0)?;
+        let len = header.file_len().map_err(|e| anyhow!("frame 0: {e:?}"))?;
+        check_frames_file(len, dataset.len(), (f.width, f.height))?;
+    }
+    let file = fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = BufWriter::new(file);
+    for i in 0..dataset.len() {
+        let (f, header) = header_of(i)?;
         write_frame(&header, &f.gray, &f.depth, |b| w.write_all(b))
             .map_err(|e| anyhow!("frame {i}: {e:?}"))?;
     }
