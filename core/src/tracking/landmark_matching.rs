@@ -39,6 +39,16 @@ const PREDICTION_FRACTION: f32 = 0.8;
 /// value: docs/decisions.md, "Guides first on a fast turn".
 const GUIDES_FIRST_TURN_RAD: f32 = core::f32::consts::PI / 180.0;
 
+/// A weak final stage whose pose is within this distance (metres) and [`AGREE_RAD`] of the best
+/// weak one before it agrees with it: two start poses gave the same pose, so the frame holds few
+/// trackable landmarks rather than a wrong start, and no later attempt is run; the stronger of
+/// the two wins. Both bounds are about a pixel at QVGA: 5 mm at 1.5 m, 0.25 degrees at a
+/// 265-pixel focal length. Why: docs/decisions.md, "Attempts stop when two agree".
+const AGREE_M: f32 = 0.005;
+
+/// The angle (radians) of [`AGREE_M`]'s agreement: 0.25 degrees.
+const AGREE_RAD: f32 = 0.25 * core::f32::consts::PI / 180.0;
+
 /// One way to find the final stage's start pose.
 #[derive(Clone, Copy)]
 enum Attempt {
@@ -116,8 +126,9 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// Matches the local map into `frame` and estimates the pose: each attempt of the module
     /// documentation gives a start pose for the final stage, in order of cost, until a final
     /// stage is strong (at least [`WEAK_FRACTION`] of the previous frame's inliers, or
-    /// [`PREDICTION_FRACTION`] for the prediction tried first); the strongest result wins, and
-    /// the bank is skipped once any attempt gave a pose (see [`ATTEMPTS`] and [`GUIDES_FIRST`]).
+    /// [`PREDICTION_FRACTION`] for the prediction tried first) or a weak one agrees with the best
+    /// weak one before it ([`AGREE_M`]); the strongest result wins, and the bank is skipped once
+    /// any attempt gave a pose (see [`ATTEMPTS`] and [`GUIDES_FIRST`]).
     /// Leaves the winner's candidates, correspondences and their sources in the scratch vectors:
     /// when a later attempt (a final stage, or guides, which use the same scratch) replaced
     /// them, the winner's final stage is run again.
@@ -189,9 +200,6 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             let (matches, estimate) = self.final_stage(frame, cam, map, &start.0);
             last_start = Some(start.0);
             let Some(est) = estimate else { continue };
-            if best.as_ref().is_none_or(|b| est.num_inliers > b.3.num_inliers) {
-                best = Some((start.0, start.1, matches, est));
-            }
             // Counts are at most 512: exact in f32.
             let fraction = match attempt {
                 Attempt::Prediction(GuideStage::MotionModel) if i == 0 => PREDICTION_FRACTION,
@@ -199,6 +207,13 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
             };
             if est.num_inliers as f32 >= fraction * previous {
                 return MatchSummary { matches, guides, stage: start.1, estimate };
+            }
+            let agrees = best.as_ref().is_some_and(|b| poses_agree(&b.3.t_cw, &est.t_cw));
+            if best.as_ref().is_none_or(|b| est.num_inliers > b.3.num_inliers) {
+                best = Some((start.0, start.1, matches, est));
+            }
+            if agrees {
+                break;
             }
         }
         let Some((start, stage, matches, est)) = best else {
@@ -408,4 +423,10 @@ fn guide_pose(
         .ok()
         .filter(|est| est.num_inliers >= p.min_guide_inliers)
         .map(|est| est.t_cw)
+}
+
+/// Whether two poses of the same frame are within [`AGREE_M`] and [`AGREE_RAD`] of each other.
+fn poses_agree(a: &Pose, b: &Pose) -> bool {
+    let d = a.inverse() * b;
+    d.translation.vector.norm() <= AGREE_M && d.rotation.angle() <= AGREE_RAD
 }

@@ -27,7 +27,9 @@
 //!    robust pose is the start of the final stage. When the final stage from them is weak (under
 //!    60% of the previous frame's inliers) or they give no pose, cheaper-first attempts follow:
 //!    the guides and the prediction from a rotation re-estimated on small blurry images, the
-//!    guides with a wider search; the strongest final stage wins. Only when none gave a pose at
+//!    guides with a wider search; the strongest final stage wins. A weak final stage whose pose
+//!    agrees with the best weak one before it (within 5 mm and 0.25 degrees) ends the attempts:
+//!    two start poses found the same pose. Only when none gave a pose at
 //!    all are the same landmarks searched with the affine bank
 //!    ([`match_region`](crate::matching::match_region)), the costliest attempt (see
 //!    `landmark_matching.rs`; why this order: docs/decisions.md, "Prediction tried before the
