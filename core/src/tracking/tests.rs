@@ -96,6 +96,18 @@ fn new_map() -> Box<TestMap> {
     Box::default()
 }
 
+/// A front end and its map after frames `0..frames` of [`pose_at`], each tracked.
+fn tracked_through(frames: usize) -> (Box<QvgaFrontend>, Box<TestMap>) {
+    let cam = camera();
+    let mut fe: Box<QvgaFrontend> = Box::default();
+    let mut map = new_map();
+    for k in 0..frames {
+        let (g, d) = render(&pose_at(k));
+        assert!(fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap().tracked);
+    }
+    (fe, map)
+}
+
 #[test]
 fn tracks_a_known_motion_to_a_centimetre() {
     let cam = camera();
@@ -223,12 +235,7 @@ fn black_frames_and_missing_depth_never_panic() {
 #[test]
 fn a_frame_from_another_scene_is_lost_not_a_jump() {
     let cam = camera();
-    let mut fe: Box<QvgaFrontend> = Box::default();
-    let mut map = new_map();
-    for k in 0..3 {
-        let (g, d) = render(&pose_at(k));
-        assert!(fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap().tracked);
-    }
+    let (mut fe, mut map) = tracked_through(3);
     // Noise unrelated to the wall, with a plausible depth.
     let noise: Vec<u8> = (0..W * H).map(|i| (hash(i as i32, 7, 9) * 255.0) as u8).collect();
     let (_, d) = render(&pose_at(3));
@@ -245,12 +252,7 @@ fn a_frame_from_another_scene_is_lost_not_a_jump() {
 #[test]
 fn weak_attempts_that_agree_stop_the_attempts() {
     let cam = camera();
-    let mut fe: Box<QvgaFrontend> = Box::default();
-    let mut map = new_map();
-    for k in 0..4 {
-        let (g, d) = render(&pose_at(k));
-        assert!(fe.process(&frame(k as f64 / 30.0, &g, &d), &cam, &mut map).unwrap().tracked);
-    }
+    let (mut fe, mut map) = tracked_through(4);
     // The right 60% of the image covered by a flat gray card: every start pose finds the same
     // few landmarks left, weak against the frames before; more attempts would find no more.
     let truth = pose_at(4);
