@@ -425,8 +425,10 @@ fn guide_pose(
         .map(|est| est.t_cw)
 }
 
-/// Whether two poses of the same frame are within [`AGREE_M`] and [`AGREE_RAD`] of each other.
+/// Whether two world-to-camera poses of the same frame agree: their camera centres within
+/// [`AGREE_M`] and their orientations within [`AGREE_RAD`] (`a * b⁻¹` is camera `b` seen from
+/// camera `a`: its translation is the centres' offset, whatever the world origin).
 fn poses_agree(a: &Pose, b: &Pose) -> bool {
-    let d = a.inverse() * b;
+    let d = a * b.inverse();
     d.translation.vector.norm() <= AGREE_M && d.rotation.angle() <= AGREE_RAD
 }
