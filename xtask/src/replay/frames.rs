@@ -45,15 +45,21 @@ pub(super) fn write_frames(dataset: &Dataset, path: &Path) -> Result<()> {
         };
         Ok((f, header))
     };
+    // The first frame, loaded once: it sizes the file, then is written first.
+    let mut first = None;
     if !dataset.is_empty() {
         let (f, header) = header_of(0)?;
         let len = header.file_len().map_err(|e| anyhow!("frame 0: {e:?}"))?;
         check_frames_file(len, dataset.len(), (f.width, f.height))?;
+        first = Some((f, header));
     }
     let file = fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = BufWriter::new(file);
     for i in 0..dataset.len() {
-        let (f, header) = header_of(i)?;
+        let (f, header) = match first.take() {
+            Some(loaded) => loaded,
+            None => header_of(i)?,
+        };
         write_frame(&header, &f.gray, &f.depth, |b| w.write_all(b))
             .map_err(|e| anyhow!("frame {i}: {e:?}"))?;
     }
