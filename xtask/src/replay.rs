@@ -36,7 +36,7 @@ use ferroslam_sim::dataset::selection::FrameSelection;
 use ferroslam_sim::dataset::{CalibrationSource, Dataset, DatasetOptions};
 use ferroslam_sim::run::{self, ArPlan, RunOptions, TrackMode, TrackingRun};
 use ferroslam_sim::serial::{Capture, decode_capture, stamped_pose};
-use ferroslam_sim::trajectory::Trajectory;
+use ferroslam_sim::trajectory::{StampedPose, Trajectory};
 use serde_json::json;
 
 mod frames;
@@ -345,49 +345,65 @@ fn field<T: PartialEq + Display>(name: &str, fw: T, host: T) -> Option<String> {
 }
 
 /// The first field that differs, as `frame N (t = T s), FIELD: firmware X, host Y`.
+///
+/// The firmware sends a message for every frame; the host's `online` trajectory leaves out the
+/// frames without a pose (state `initializing`: before the first keyframe, or, in a loaded map,
+/// before the first relocalization). Those frames are compared by everything but the pose.
 fn first_difference(fw: &[PoseMessage], host: &TrackingRun) -> Option<String> {
-    let n = fw.len().max(host.online.len());
-    for i in 0..n {
-        let (Some(p), Some(h), Some(hf)) =
-            (fw.get(i), host.online.poses.get(i), host.per_frame.get(i))
-        else {
-            return Some(format!(
-                "frame {i}: the firmware sent {} poses, the host replay made {}",
-                fw.len(),
-                host.online.len()
-            ));
+    if fw.len() != host.per_frame.len() {
+        return Some(format!(
+            "the firmware sent {} poses for the host replay's {} frames",
+            fw.len(),
+            host.per_frame.len()
+        ));
+    }
+    let mut online = host.online.poses.iter();
+    for (i, (p, hf)) in fw.iter().zip(&host.per_frame).enumerate() {
+        let h = if hf.state == "initializing" {
+            None
+        } else {
+            let Some(h) = online.next() else {
+                return Some(format!(
+                    "frame {i}: the host replay has {} poses, fewer than its frames with one",
+                    host.online.len()
+                ));
+            };
+            Some(h)
         };
-        let t = h.t_wc.translation.vector;
-        let q = h.t_wc.rotation.coords;
-        // The host's poses are the core's f32 values widened to f64: narrowing is exact.
-        #[allow(clippy::cast_possible_truncation)]
-        let host_t = [t.x as f32, t.y as f32, t.z as f32];
-        #[allow(clippy::cast_possible_truncation)]
-        let host_q = [q.x as f32, q.y as f32, q.z as f32, q.w as f32];
         let state = match p.state {
             TrackingState::Initializing => "initializing",
             TrackingState::Tracking => "tracking",
             TrackingState::Lost => "lost",
         };
         let bits = |v: f32| format!("{v:e} ({:#010x})", v.to_bits());
+        let pose = |h: &StampedPose| {
+            let t = h.t_wc.translation.vector;
+            let q = h.t_wc.rotation.coords;
+            // The host's poses are the core's f32 values widened to f64: narrowing is exact.
+            #[allow(clippy::cast_possible_truncation)]
+            let host_t = [t.x as f32, t.y as f32, t.z as f32];
+            #[allow(clippy::cast_possible_truncation)]
+            let host_q = [q.x as f32, q.y as f32, q.z as f32, q.w as f32];
+            (0..3)
+                .find_map(|k| {
+                    field(&format!("translation_m[{k}]"), bits(p.translation_m[k]), bits(host_t[k]))
+                })
+                .or_else(|| {
+                    (0..4).find_map(|k| {
+                        let name = format!("rotation_xyzw[{k}]");
+                        field(&name, bits(p.rotation_xyzw[k]), bits(host_q[k]))
+                    })
+                })
+        };
         let diff = field("frame_index", p.frame_index as usize, i)
             .or_else(|| {
                 field(
                     "timestamp_s",
                     format!("{} ({:#x})", p.timestamp_s, p.timestamp_s.to_bits()),
-                    format!("{} ({:#x})", h.timestamp_s, h.timestamp_s.to_bits()),
+                    format!("{} ({:#x})", hf.timestamp_s, hf.timestamp_s.to_bits()),
                 )
             })
-            .or_else(|| {
-                (0..3).find_map(|k| {
-                    field(&format!("translation_m[{k}]"), bits(p.translation_m[k]), bits(host_t[k]))
-                })
-            })
-            .or_else(|| {
-                (0..4).find_map(|k| {
-                    field(&format!("rotation_xyzw[{k}]"), bits(p.rotation_xyzw[k]), bits(host_q[k]))
-                })
-            })
+            .or_else(|| h.and_then(pose))
             .or_else(|| field("state", state, hf.state))
             .or_else(|| field("tracked", p.flags.contains(PoseFlags::TRACKED), hf.tracked))
             .or_else(|| field("keyframe", p.flags.contains(PoseFlags::KEYFRAME), hf.keyframe))
@@ -407,15 +423,19 @@ fn first_difference(fw: &[PoseMessage], host: &TrackingRun) -> Option<String> {
             .or_else(|| field("inliers", usize::from(p.inliers), hf.inliers.min(65535)))
             .or_else(|| field("matches", usize::from(p.matches), hf.matches.min(65535)));
         if let Some(d) = diff {
-            return Some(format!("frame {i} (t = {} s), {d}", h.timestamp_s));
+            return Some(format!("frame {i} (t = {} s), {d}", hf.timestamp_s));
         }
     }
-    None
+    online.next().map(|_| {
+        format!("the host replay has {} poses, more than its frames with one", host.online.len())
+    })
 }
 
-/// Writes `firmware_trajectory.txt` and `host_trajectory.txt` (TUM).
+/// Writes `firmware_trajectory.txt` and `host_trajectory.txt` (TUM): the frames with a pose (the
+/// firmware's messages for frames in state `initializing` carry none and are left out).
 fn write_trajectories(out: &Path, fw: &[PoseMessage], host: &TrackingRun) -> Result<()> {
-    Trajectory::new(fw.iter().map(stamped_pose).collect())
+    let posed = fw.iter().filter(|p| p.state != TrackingState::Initializing);
+    Trajectory::new(posed.map(stamped_pose).collect())
         .write_tum(&out.join("firmware_trajectory.txt"))?;
     host.online.write_tum(&out.join("host_trajectory.txt"))?;
     Ok(())
@@ -549,11 +569,49 @@ mod tests {
         assert!(diff.starts_with("frame 2 (t = 7 s), rotation_xyzw[1]: firmware"), "{diff}");
         let mut fewer = fw.clone();
         fewer.pop();
-        assert!(first_difference(&fewer, &host).unwrap().contains("sent 3 poses"));
+        assert!(first_difference(&fewer, &host).unwrap().contains("sent 3 poses for"));
         let mut lost = fw;
         lost[1].state = TrackingState::Lost;
         let diff = first_difference(&lost, &host).unwrap();
         assert!(diff.contains("state: firmware lost, host tracking"), "{diff}");
+    }
+
+    /// A run in a loaded map: the first two frames have no pose until one relocalizes. The host
+    /// leaves them out of its trajectory; the firmware sends them (state `initializing`, no
+    /// pose), and they are compared by everything but the pose.
+    #[test]
+    fn frames_without_a_pose_are_compared_by_state_alone() {
+        let mut fw: Vec<PoseMessage> = (0..4).map(pose).collect();
+        for p in &mut fw[..2] {
+            (p.state, p.flags, p.inliers, p.matches) =
+                (TrackingState::Initializing, PoseFlags(0), 0, 0);
+            (p.translation_m, p.rotation_xyzw) = ([0.0; 3], [0.0, 0.0, 0.0, 1.0]);
+        }
+        fw[2].flags = PoseFlags(PoseFlags::TRACKED | PoseFlags::RELOCALIZED);
+        let mut host = host_of(&fw);
+        host.online = Trajectory::new(fw[2..].iter().map(stamped_pose).collect());
+        for f in &mut host.per_frame[..2] {
+            (f.state, f.tracked, f.inliers, f.matches) = ("initializing", false, 0, 0);
+        }
+        host.per_frame[2].relocalized = true;
+        assert_eq!(first_difference(&fw, &host), None);
+        // The first pose is still checked bit for bit, against the host's first pose.
+        let mut moved = fw.clone();
+        moved[2].translation_m[0] = 0.5;
+        let diff = first_difference(&moved, &host).unwrap();
+        assert!(diff.starts_with("frame 2 (t = 7 s), translation_m[0]: firmware"), "{diff}");
+        // A frame the firmware tracked where the host had no pose yet.
+        let mut early = fw.clone();
+        early[1].state = TrackingState::Tracking;
+        let diff = first_difference(&early, &host).unwrap();
+        assert!(diff.contains("frame 1 (t = 6 s), state: firmware tracking, host initializing"));
+        // A host pose left over.
+        host.per_frame[3].state = "initializing";
+        fw[3].state = TrackingState::Initializing;
+        fw[3].flags = PoseFlags(0);
+        host.per_frame[3].tracked = false;
+        let diff = first_difference(&fw, &host).unwrap();
+        assert!(diff.contains("more than its frames with one"), "{diff}");
     }
 
     #[test]
