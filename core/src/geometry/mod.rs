@@ -32,5 +32,7 @@ pub use align::{AlignError, align_rigid};
 pub use camera::{
     CameraError, MIN_PROJECTION_DEPTH_M, PinholeCamera, PoseProjection, WorldProjection,
 };
-pub use se3::{Pose, se3_adjoint, se3_exp, se3_left_jacobian, se3_left_jacobian_inv, se3_log};
+pub use se3::{
+    Pose, camera_gap, se3_adjoint, se3_exp, se3_left_jacobian, se3_left_jacobian_inv, se3_log,
+};
 pub use so3::{hat, so3_exp, so3_left_jacobian, so3_left_jacobian_inv, so3_log, vee};

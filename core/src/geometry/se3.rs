@@ -17,6 +17,16 @@ use super::so3::{hat, lit, so3_exp, so3_left_jacobian, so3_left_jacobian_inv, so
 /// trajectories report), `t_cw = t_wc.inverse()` world-to-camera (what projection uses).
 pub type Pose = Isometry3<f32>;
 
+/// How far apart two poses of one camera are: the distance between their camera centres (metres)
+/// and the angle of the rotation from one orientation to the other (radians), both independent
+/// of where the world origin is. Takes camera-to-world poses (`t_wc`), whose translations are the
+/// centres.
+pub fn camera_gap(a_wc: &Pose, b_wc: &Pose) -> (f32, f32) {
+    let moved = (a_wc.translation.vector - b_wc.translation.vector).norm();
+    let turned = (a_wc.rotation * b_wc.rotation.inverse()).angle();
+    (moved, turned)
+}
+
 /// The `(rho, phi)` parts of a twist `[rho; phi]`.
 fn split<T: RealField + Copy>(xi: &Vector6<T>) -> (Vector3<T>, Vector3<T>) {
     // nalgebra names the six entries x, y, z, w, a, b.
@@ -166,6 +176,29 @@ mod tests {
 
     fn pose_distance(a: &Isometry3<f64>, b: &Isometry3<f64>) -> f64 {
         (a.translation.vector - b.translation.vector).norm() + a.rotation.angle_to(&b.rotation)
+    }
+
+    /// The gap between two poses of a camera is the same wherever the world's origin is, and is
+    /// the offset and turn of one camera seen from the other (`a_cw * b_cw^-1`).
+    #[test]
+    fn camera_gap_does_not_depend_on_the_world_origin() {
+        let mut rng = TestRng::new(11);
+        for i in 0..200 {
+            let a: Pose = se3_exp(&random_twist(&mut rng, i)).cast();
+            let nudge: Pose = se3_exp(&(random_twist(&mut rng, i) * 0.01)).cast();
+            let b = nudge * a;
+            let world: Pose = se3_exp(&(random_twist(&mut rng, i) * 5.0)).cast();
+            let (moved, turned) = camera_gap(&a, &b);
+            let (moved_w, turned_w) = camera_gap(&(world * a), &(world * b));
+            let seen = a.inverse() * b;
+            let expected = (seen.translation.vector.norm(), seen.rotation.angle());
+            for (got, want) in [(moved, expected.0), (moved_w, expected.0)] {
+                assert!((got - want).abs() <= 1e-4 * (1.0 + want), "{i}: {got} vs {want}");
+            }
+            for (got, want) in [(turned, expected.1), (turned_w, expected.1)] {
+                assert!((got - want).abs() <= 1e-3, "{i}: {got} vs {want}");
+            }
+        }
     }
 
     #[test]

@@ -40,7 +40,7 @@ use heapless::Vec;
 use crate::ar::{SavedWorld, WORLD_UNITS, World, WorldError, is_world_unit};
 use crate::config::STORE_READ_TRIES;
 use crate::config::capacity::PLACE_POINTS;
-use crate::geometry::Pose;
+use crate::geometry::{Pose, camera_gap};
 use crate::map::{
     KEY_BITS_WORDS, KeyBits, KeyFrameId, KeyframeStore, Map, PlaceKey, PlacePoint, PlaceRecord,
     RecordBytes,
@@ -653,10 +653,8 @@ impl<S: KeyframeStore> PlaceMemory<S> {
     /// motions: a small turn about a far origin moves the world a lot and the keyframe little.
     fn confirm_held(&mut self, correction: Pose, seq: u32, t_wc_now: &Pose) -> bool {
         let agrees = self.held_run.is_some_and(|run| {
-            let a = correction * t_wc_now;
-            let b = run.correction * t_wc_now;
-            let moved = (a.translation.vector - b.translation.vector).norm();
-            let turned = (a.rotation * b.rotation.inverse()).angle();
+            let (moved, turned) =
+                camera_gap(&(correction * t_wc_now), &(run.correction * t_wc_now));
             seq.wrapping_sub(run.keyframe_seq) <= HELD_MAX_GAP
                 && moved <= HELD_AGREE_M
                 && turned <= HELD_AGREE_RAD

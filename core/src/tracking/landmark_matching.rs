@@ -6,7 +6,7 @@ use nalgebra::Point2;
 use super::GuideStage;
 use super::tracker::FrameTracker;
 use crate::frame::RgbdFrame;
-use crate::geometry::{PinholeCamera, Pose};
+use crate::geometry::{PinholeCamera, Pose, camera_gap};
 use crate::grid_spread::{Candidate, Grid, spread};
 use crate::map::Map;
 use crate::matching::{
@@ -426,9 +426,8 @@ fn guide_pose(
 }
 
 /// Whether two world-to-camera poses of the same frame agree: their camera centres within
-/// [`AGREE_M`] and their orientations within [`AGREE_RAD`] (`a * b⁻¹` is camera `b` seen from
-/// camera `a`: its translation is the centres' offset, whatever the world origin).
-fn poses_agree(a: &Pose, b: &Pose) -> bool {
-    let d = a * b.inverse();
-    d.translation.vector.norm() <= AGREE_M && d.rotation.angle() <= AGREE_RAD
+/// [`AGREE_M`] and their orientations within [`AGREE_RAD`].
+fn poses_agree(a_cw: &Pose, b_cw: &Pose) -> bool {
+    let (moved, turned) = camera_gap(&a_cw.inverse(), &b_cw.inverse());
+    moved <= AGREE_M && turned <= AGREE_RAD
 }
