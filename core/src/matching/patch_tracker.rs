@@ -332,6 +332,51 @@ impl Moments {
             return None;
         }
         let (fx, fy) = (x0 - bx as f32, y0 - by as f32);
+        if fx == 0.0 && fy == 0.0 {
+            return Self::at_pixels::<N, STEP, SCORE>(img, (bx, by), sd, z);
+        }
+        Self::interpolated::<N, STEP, SCORE>(img, (bx, by), (fx, fy), sd, z)
+    }
+
+    /// [`Self::at`] at an integer origin `(bx, by)` (the first Lucas-Kanade step, from the
+    /// integer search's best candidate): every interpolation weight is 0, and `a + 0 (b - a)` is
+    /// `a`, so the pixels themselves give the same sums bit for bit, in the same order, without
+    /// interpolating (about a third of the step's work). The caller checked the bounds.
+    fn at_pixels<const N: usize, const STEP: bool, const SCORE: bool>(
+        img: &GrayView<'_>,
+        (bx, by): (usize, usize),
+        sd: &Steepest<N>,
+        z: &[[f32; N]; N],
+    ) -> Option<Self> {
+        let mut m = Self { sum: 0.0, sum_sq: 0.0, gx_v: 0.0, gy_v: 0.0, z_v: 0.0 };
+        let rows = sd.gx.iter().zip(&sd.gy).zip(z).enumerate();
+        for (j, ((gxr, gyr), zr)) in rows {
+            let px = img.row(by + j)?.get(bx..bx + N)?;
+            for (i, &p) in px.iter().enumerate() {
+                let v = f32::from(p) - GRAY_OFFSET;
+                m.sum += v;
+                m.sum_sq += v * v;
+                if STEP {
+                    m.gx_v += gxr[i] * v;
+                    m.gy_v += gyr[i] * v;
+                }
+                if SCORE {
+                    m.z_v += zr[i] * v;
+                }
+            }
+        }
+        Some(m)
+    }
+
+    /// [`Self::at`] at origin `(bx + fx, by + fy)` by bilinear interpolation (rows first, then
+    /// columns). The caller checked the bounds.
+    fn interpolated<const N: usize, const STEP: bool, const SCORE: bool>(
+        img: &GrayView<'_>,
+        (bx, by): (usize, usize),
+        (fx, fy): (f32, f32),
+        sd: &Steepest<N>,
+        z: &[[f32; N]; N],
+    ) -> Option<Self> {
         let mut m = Self { sum: 0.0, sum_sq: 0.0, gx_v: 0.0, gy_v: 0.0, z_v: 0.0 };
         // The horizontal pass of the previous row, reused as the top of the next.
         let mut top = Self::row::<N>(img, bx, by, fx)?;
@@ -584,5 +629,61 @@ mod test_images {
     pub(crate) fn noise_image(seed: u64) -> [u8; 40 * 40] {
         let mut rng = TestRng::new(seed);
         core::array::from_fn(|_| (rng.next_u32() >> 24) as u8)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::test_images::noise_image;
+    use super::*;
+    use crate::test_rng::TestRng;
+
+    /// Every sum as its bits, so that `-0.0` and `0.0` differ.
+    fn bits(m: &Moments) -> [u32; 5] {
+        [m.sum, m.sum_sq, m.gx_v, m.gy_v, m.z_v].map(f32::to_bits)
+    }
+
+    /// At an integer origin the pixels' sums are the interpolation's, bit for bit: every weight is
+    /// 0. Checked at every origin of two images (noise, and a flat 128, whose centred values are
+    /// 0), with both the step's and the score's sums.
+    #[test]
+    fn moments_at_integer_origins_are_the_interpolated_ones() {
+        let mut rng = TestRng::new(5);
+        let mut sd = Steepest::<9>::EMPTY;
+        let mut z = [[0.0f32; 9]; 9];
+        for ((gx, gy), zv) in sd
+            .gx
+            .as_flattened_mut()
+            .iter_mut()
+            .zip(sd.gy.as_flattened_mut())
+            .zip(z.as_flattened_mut())
+        {
+            (*gx, *gy, *zv) = (
+                rng.uniform_f32(-20.0, 20.0),
+                rng.uniform_f32(-20.0, 20.0),
+                rng.uniform_f32(-50.0, 50.0),
+            );
+        }
+        let (noise, flat) = (noise_image(31), [128u8; 40 * 40]);
+        for data in [&noise[..], &flat[..]] {
+            let img = GrayView::new(data, 40, 40, 40).unwrap();
+            for (by, bx) in (0..30).flat_map(|y| (0..30).map(move |x| (y, x))) {
+                let fast = Moments::at_pixels::<9, true, true>(&img, (bx, by), &sd, &z).unwrap();
+                let slow =
+                    Moments::interpolated::<9, true, true>(&img, (bx, by), (0.0, 0.0), &sd, &z)
+                        .unwrap();
+                assert_eq!(bits(&fast), bits(&slow), "origin {bx}, {by}");
+                let origin = (bx as f32, by as f32);
+                let step = Moments::at::<9, true, false>(&img, origin, &sd, &z).unwrap();
+                let score = Moments::at::<9, false, true>(&img, origin, &sd, &z).unwrap();
+                assert_eq!((step.gx_v, step.gy_v, score.z_v), (slow.gx_v, slow.gy_v, slow.z_v));
+            }
+            // The last origin whose block, with the interpolation's extra row and column, fits.
+            assert!(Moments::at::<9, true, false>(&img, (30.0, 30.0), &sd, &z).is_some());
+            assert!(Moments::at::<9, true, false>(&img, (31.0, 30.0), &sd, &z).is_none());
+            assert!(Moments::at::<9, true, false>(&img, (30.0, 31.0), &sd, &z).is_none());
+        }
     }
 }
