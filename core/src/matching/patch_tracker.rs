@@ -353,16 +353,7 @@ impl Moments {
         for (j, ((gxr, gyr), zr)) in rows {
             let px = img.row(by + j)?.get(bx..bx + N)?;
             for (i, &p) in px.iter().enumerate() {
-                let v = f32::from(p) - GRAY_OFFSET;
-                m.sum += v;
-                m.sum_sq += v * v;
-                if STEP {
-                    m.gx_v += gxr[i] * v;
-                    m.gy_v += gyr[i] * v;
-                }
-                if SCORE {
-                    m.z_v += zr[i] * v;
-                }
+                m.add::<STEP, SCORE>(f32::from(p) - GRAY_OFFSET, (gxr[i], gyr[i], zr[i]));
             }
         }
         Some(m)
@@ -384,20 +375,26 @@ impl Moments {
         for (j, ((gxr, gyr), zr)) in rows {
             let bot = Self::row::<N>(img, bx, by + j + 1, fx)?;
             for i in 0..N {
-                let v = top[i] + fy * (bot[i] - top[i]);
-                m.sum += v;
-                m.sum_sq += v * v;
-                if STEP {
-                    m.gx_v += gxr[i] * v;
-                    m.gy_v += gyr[i] * v;
-                }
-                if SCORE {
-                    m.z_v += zr[i] * v;
-                }
+                m.add::<STEP, SCORE>(top[i] + fy * (bot[i] - top[i]), (gxr[i], gyr[i], zr[i]));
             }
             top = bot;
         }
         Some(m)
+    }
+
+    /// Adds the sample `v` with its steepest-descent and zero-mean template values `(gx, gy, z)`,
+    /// each sum in the order of the samples (`STEP`, `SCORE` as in [`Self::at`]).
+    #[inline(always)]
+    fn add<const STEP: bool, const SCORE: bool>(&mut self, v: f32, (gx, gy, z): (f32, f32, f32)) {
+        self.sum += v;
+        self.sum_sq += v * v;
+        if STEP {
+            self.gx_v += gx * v;
+            self.gy_v += gy * v;
+        }
+        if SCORE {
+            self.z_v += z * v;
+        }
     }
 
     /// Row `y` of `img` from column `bx`, interpolated at `+fx` (minus the gray offset).
