@@ -306,9 +306,9 @@ impl Default for SensorModel {
 /// this value: docs/decisions.md, "Back-end work quota per frame".
 pub const DEFAULT_BACKEND_QUOTA: u32 = 2_500;
 
-/// Back-end steps a run allows after its last frame to finish the work under way before its map
-/// is read or saved (`Slam::drain_backend`): the host replay's and the board's, so that both
-/// save the same map.
+/// Back-end steps a run allows after its last frame, before its map is read or saved
+/// (`Slam::drain_backend`: the work under way, then its newest keyframes settled): the host
+/// replay's and the board's, so that both save the same map.
 pub const DEFAULT_DRAIN_STEPS: u32 = 10_000;
 
 /// Reads of a store's table or record before it is taken as damaged: a read that flipped a bit

@@ -110,10 +110,11 @@ impl Pipeline {
         places.flush();
     }
 
-    /// Finishes the back end's work under way ([`DEFAULT_DRAIN_STEPS`] steps of [`BACKEND_QUOTA`] at
-    /// most, as the host replay does after its last frame), then hands every keyframe of the
-    /// active map to `places` to be remembered, oldest first (they stay in the map): a save's
-    /// first half, before the place memory's commit. A back-end error counts as a fault.
+    /// Ends the back end's work as the host replay does after its last frame (the work under way,
+    /// then the newest keyframes settled: `Slam::drain_backend`, [`DEFAULT_DRAIN_STEPS`] steps of
+    /// [`BACKEND_QUOTA`] at most), then hands every keyframe of the active map to `places` to be
+    /// remembered, oldest first (they stay in the map): a save's first half, before the place
+    /// memory's commit. A back-end error counts as a fault.
     pub fn remember_map_in(&mut self, cam: &PinholeCamera, places: &mut impl Places) {
         if self.slam.drain_backend(cam, BACKEND_QUOTA, DEFAULT_DRAIN_STEPS).is_err() {
             self.note_fault();

@@ -24,7 +24,9 @@
 //! set the next local BA's target ([`Backend::keyframe_added`]), so the back end never queues
 //! unbounded work: when it is busy, it adjusts around the newest keyframe next. Given the same
 //! frames and the same quota per step, the results are the same bits however the caller
-//! schedules the steps in time (deterministic replay gives a fixed quota per frame).
+//! schedules the steps in time (deterministic replay gives a fixed quota per frame). When a run
+//! ends, its newest keyframes, which the skipped targets leave least adjusted, each get a local
+//! BA ([`BackendParams::settle_keyframes`], run by `system::Slam::drain_backend`).
 //!
 //! A solver step reads no map and writes none: [`Backend::solve_job`] hands it out as a
 //! [`SolveJob`] that borrows only the back end, which can run while the front end tracks the
@@ -136,6 +138,12 @@ pub struct BackendParams {
     pub segment_keyframes: u32,
     /// Run segmented global BA when a segment completes. Default `true`.
     pub global_enabled: bool,
+    /// When a run ends (`Slam::drain_backend`, before its map is read or saved), the newest
+    /// this many keyframes each get a local BA around them, oldest first: in a run that went on
+    /// they would sit in the windows of the keyframes after them, so at its end they have had
+    /// the fewest adjustments. 0: none. Default 8, about a board window (9 keyframes on
+    /// average); why: docs/decisions.md, "A run ends with its newest keyframes settled".
+    pub settle_keyframes: u8,
 }
 
 impl BackendParams {
@@ -161,6 +169,7 @@ impl BackendParams {
         reference_after: 10,
         segment_keyframes: capacity::SEGMENT_MAX_KEYFRAMES as u32,
         global_enabled: true,
+        settle_keyframes: 8,
     };
 
     /// These parameters with the sensor's measurement model in both solvers, each keeping its

@@ -148,9 +148,11 @@ impl<P: ProfileTypes> Slam<P> {
         self.backend.step(&mut self.map, &cam, work_quota)
     }
 
-    /// Runs the back end in steps of `work_quota` units until it has nothing under way, at most
-    /// `max_steps` steps: what ends a run before its map is read or saved (the last solve's
-    /// adjustment applied). Returns the steps run.
+    /// What ends a run before its map is read or saved, in steps of `work_quota` units, at
+    /// most `max_steps` in all: the back end finishes the work under way (the last solve's
+    /// adjustment applied), then each of the newest
+    /// [`BackendParams::settle_keyframes`] keyframes gets a local BA around it, oldest first.
+    /// Returns the steps run.
     ///
     /// # Errors
     /// As `Backend::step`; the steps stop at the first.
@@ -160,15 +162,55 @@ impl<P: ProfileTypes> Slam<P> {
         work_quota: u32,
         max_steps: u32,
     ) -> Result<u32, BackendError> {
+        // The keyframe the last frame made is the back end's before the settling replaces it.
+        self.tell_backend();
+        let mut steps = 0;
+        if self.backend.is_busy() {
+            steps = self.run_backend_until_idle(cam, work_quota, max_steps)?;
+        }
+        let mut next = self.oldest_to_settle();
+        while let Some((kf, seq)) = next {
+            self.backend.keyframe_added(kf, seq);
+            steps += self.run_backend_until_idle(cam, work_quota, max_steps - steps)?;
+            next = self.next_keyframe_after(seq);
+        }
+        Ok(steps)
+    }
+
+    /// Back-end steps until one finds nothing to do, at most `max_steps`; returns the steps run.
+    fn run_backend_until_idle(
+        &mut self,
+        cam: &PinholeCamera,
+        work_quota: u32,
+        max_steps: u32,
+    ) -> Result<u32, BackendError> {
         for step in 0..max_steps {
-            if !self.backend.is_busy() {
-                return Ok(step);
-            }
             if let BackendStatus::Idle = self.step_backend(cam, work_quota)? {
                 return Ok(step + 1);
             }
         }
         Ok(max_steps)
+    }
+
+    /// The oldest of the newest [`BackendParams::settle_keyframes`] keyframes (its id and
+    /// creation number), if any. Cost: one pass over the keyframes per keyframe settled.
+    fn oldest_to_settle(&self) -> Option<(KeyFrameId, u32)> {
+        let mut oldest = None;
+        let mut below = u32::MAX;
+        for _ in 0..self.backend.params().settle_keyframes {
+            let seqs = self.map.keyframes().map(|(_, k)| k.seq);
+            let Some(seq) = seqs.filter(|&s| s < below).max() else { break };
+            below = seq;
+            oldest = Some(seq);
+        }
+        let seq = oldest?;
+        self.map.keyframes().find(|(_, k)| k.seq == seq).map(|(id, _)| (id, seq))
+    }
+
+    /// The keyframe created next after creation number `seq`, if any.
+    fn next_keyframe_after(&self, seq: u32) -> Option<(KeyFrameId, u32)> {
+        let next = self.map.keyframes().filter(|(_, k)| k.seq > seq).min_by_key(|(_, k)| k.seq);
+        next.map(|(id, k)| (id, k.seq))
     }
 
     /// The front end with the map, and the back end's solve, borrowed apart for one frame: `Some`
