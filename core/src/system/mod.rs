@@ -151,8 +151,9 @@ impl<P: ProfileTypes> Slam<P> {
     /// What ends a run before its map is read or saved, in steps of `work_quota` units, at
     /// most `max_steps` in all: the back end finishes the work under way (the last solve's
     /// adjustment applied), then each of the newest
-    /// [`BackendParams::settle_keyframes`] keyframes gets a local BA around it, oldest first.
-    /// Returns the steps run.
+    /// [`BackendParams::settle_keyframes`] keyframes gets a local BA around it, oldest first (a
+    /// segmented global BA that is due runs when the back end is first idle, as in a run that goes
+    /// on). Returns the steps run.
     ///
     /// # Errors
     /// As `Backend::step`; the steps stop at the first.
