@@ -149,11 +149,11 @@ impl<P: ProfileTypes> Slam<P> {
     }
 
     /// What ends a run before its map is read or saved, in steps of `work_quota` units, at
-    /// most `max_steps` in all: the back end finishes the work under way (the last solve's
-    /// adjustment applied), then each of the newest
-    /// [`BackendParams::settle_keyframes`] keyframes gets a local BA around it, oldest first (a
-    /// segmented global BA that is due runs when the back end is first idle, as in a run that goes
-    /// on). Returns the steps run.
+    /// most `max_steps` in all: a busy back end works until it finds nothing to do (the solve
+    /// under way applied, then a keyframe waiting), then each of the newest
+    /// [`BackendParams::settle_keyframes`] keyframes gets a local BA around it, oldest first. A
+    /// segmented global BA that is due runs once no keyframe waits, as in a run that goes on.
+    /// Returns the steps run.
     ///
     /// # Errors
     /// As `Backend::step`; the steps stop at the first.
