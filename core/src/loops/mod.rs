@@ -36,6 +36,7 @@ mod verify;
 mod tests;
 
 use heapless::Vec;
+use nalgebra::Point3;
 
 use crate::ar::{SavedWorld, WORLD_UNITS, World, WorldError, is_world_unit};
 use crate::config::STORE_READ_TRIES;
@@ -51,7 +52,7 @@ use crate::persist::{
 use crate::pose::TrackingRng;
 use crate::tracking::{LoopClosure, PlaceQuery, Places};
 
-pub use verify::{RANSAC_ITERATIONS, Verified, VerifyParams, verify};
+pub use verify::{RANSAC_ITERATIONS, Verified, VerifyParams, inlier_pairs, verify};
 
 /// Remembered places verified per query, the nearest by key.
 pub const CANDIDATES: usize = 3;
@@ -176,6 +177,9 @@ pub struct PlaceMemory<S> {
     /// The last held loop (its correction and keyframe creation number) and how many held loops
     /// in a row agreed with it, itself included ([`HELD_LOOP_CONFIRMATIONS`]).
     held_run: Option<HeldRun>,
+    /// While frozen: the stored place the last loop query verified (its slot) and the pose it
+    /// gave the keyframe, for [`Places::map_points`].
+    map_place: Option<(usize, Pose)>,
 }
 
 /// Held loops in a row that agree (see [`PlaceMemory`]'s `held_run`).
@@ -230,6 +234,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             world_at: None,
             world_saved: None,
             held_run: None,
+            map_place: None,
         }
     }
 
@@ -534,6 +539,17 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.write_pending();
     }
 
+    fn map_points(&mut self, query: &PlaceQuery<'_>, mut f: impl FnMut(usize, Point3<f32>)) {
+        let Some((slot, t_wc)) = self.map_place.take() else { return };
+        let Some(r) = self.read(slot) else { return };
+        let t_rq = r.t_wc.inverse() * t_wc;
+        inlier_pairs(query, &r.points, &self.params, &t_rq, |qi, pi| {
+            if let Some(p) = r.points.get(pi) {
+                f(qi, r.t_wc * p.p_c);
+            }
+        });
+    }
+
     fn remember<const K: usize, const L: usize>(&mut self, map: &Map<K, L>, kf: KeyFrameId) {
         if self.frozen {
             return;
@@ -582,6 +598,7 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         kf: KeyFrameId,
         track_start: u32,
     ) -> Option<LoopClosure> {
+        self.map_place = None;
         let k = map.keyframe(kf)?;
         let (seq, t_wc_now) = (k.seq, k.t_wc);
         if self.len == 0 && track_start == 0 {
@@ -590,7 +607,11 @@ impl<S: KeyframeStore> Places for PlaceMemory<S> {
         self.loops.queries = self.loops.queries.saturating_add(1);
         let (t_wc, record_seq, record_timestamp_s) =
             match self.locate(query, map, Candidates::Before(track_start)) {
-                Located::At(t_wc, s, ts) => (t_wc, s, ts),
+                Located::At(t_wc, s, ts, slot) => {
+                    // Localizing: the loaded map's place, for `map_points`.
+                    self.map_place = slot.filter(|_| self.frozen).map(|slot| (slot, t_wc));
+                    (t_wc, s, ts)
+                }
                 Located::Ambiguous => {
                     self.loops.rejected = self.loops.rejected.saturating_add(1);
                     return None;
@@ -638,8 +659,9 @@ enum Candidates {
 /// Where a query put the frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Located {
-    /// At `t_wc`, verified in the place of this keyframe creation number (and timestamp).
-    At(Pose, u32, f64),
+    /// At `t_wc`, verified in the place of this keyframe creation number (and timestamp); the
+    /// place's slot when it is a stored record.
+    At(Pose, u32, f64, Option<usize>),
     /// Two places verified different poses.
     Ambiguous,
     /// No place verified.
@@ -698,7 +720,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
         for (id, k) in map.keyframes().filter(|(_, k)| k.seq < before) {
             offer(k.place_key.distance(&query.key), Place::Active(id));
         }
-        let mut found: Vec<(Verified, Pose, u32, f64), CANDIDATES> = Vec::new();
+        let mut found: Vec<(Verified, Pose, u32, f64, Option<usize>), CANDIDATES> = Vec::new();
         for &(_, place) in &nearest {
             let record = match place {
                 Place::Stored(slot) => self.read(slot),
@@ -707,10 +729,15 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             let Some(r) = record else { continue };
             if let Some(v) = verify(query, &r.points, &self.params, &mut self.rng) {
                 self.stats.verified = self.stats.verified.saturating_add(1);
-                let _ = found.push((v, r.t_wc * v.t_rq, r.seq, r.timestamp_s));
+                let slot = match place {
+                    Place::Stored(slot) => Some(slot),
+                    Place::Active(_) => None,
+                };
+                let _ = found.push((v, r.t_wc * v.t_rq, r.seq, r.timestamp_s, slot));
             }
         }
-        let Some((best, t_wc, seq, ts)) = found.iter().copied().max_by_key(|(v, ..)| v.inliers)
+        let Some((best, t_wc, seq, ts, slot)) =
+            found.iter().copied().max_by_key(|(v, ..)| v.inliers)
         else {
             return Located::Nowhere;
         };
@@ -718,7 +745,7 @@ impl<S: KeyframeStore> PlaceMemory<S> {
             pose_distance(t, &t_wc) > AMBIGUITY_DISTANCE
                 && v.inliers as f32 >= AMBIGUITY_RATIO * best.inliers as f32
         });
-        if rival { Located::Ambiguous } else { Located::At(t_wc, seq, ts) }
+        if rival { Located::Ambiguous } else { Located::At(t_wc, seq, ts, slot) }
     }
 }
 

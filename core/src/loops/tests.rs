@@ -304,6 +304,38 @@ fn a_new_keyframe_in_a_remembered_place_closes_a_loop_beyond_the_drift_a_view_re
     assert_eq!(memory.loop_stats().held, 1);
 }
 
+#[test]
+fn a_localizing_memory_gives_the_map_points_a_new_keyframe_matches() {
+    let (old, kf, truth, points) = revisit(16);
+    let mut memory = PlaceMemory::new(RamStore::<4>::new(), 3);
+    memory.remember(&old, kf);
+    memory.freeze(true);
+    // The camera back near the remembered keyframe, the run 3 cm and half a degree off the map.
+    let (now, new_kf) = map_with(&[], pose([0.03, 0.0, 0.01], [0.0, 0.01, 0.0]) * truth);
+    assert!(
+        memory.close_loop(&query(&points), &now, new_kf, 0).is_none(),
+        "within a view's accuracy"
+    );
+    assert_eq!(memory.loop_stats().consistent, 1);
+    let mut pairs: std::vec::Vec<(usize, Point3<f32>)> = std::vec::Vec::new();
+    memory.map_points(&query(&points), |i, p_w| pairs.push((i, p_w)));
+    assert!(pairs.len() >= PLACE_POINTS - 4, "{} of {PLACE_POINTS}", pairs.len());
+    for (i, p_w) in &pairs {
+        // The place's points follow the 80 distractors; each pair is the same point.
+        assert!(*i >= 80, "distractor {i} matched");
+        let err = (truth * points[*i].p_c - p_w).norm();
+        assert!(err < 2e-3, "point {i} off by {err} m");
+    }
+    let mut again = 0;
+    memory.map_points(&query(&points), |_, _| again += 1);
+    assert_eq!(again, 0, "given once per loop query");
+    // Mapping (not frozen): the map's points are not offered.
+    memory.freeze(false);
+    let _ = memory.close_loop(&query(&points), &now, new_kf, 0);
+    memory.map_points(&query(&points), |_, _| again += 1);
+    assert_eq!(again, 0);
+}
+
 /// A keyframe of creation number `seq` at `t_wc`, alone in a map.
 fn keyframe_numbered(seq: u32, t_wc: Pose) -> (Map<4, 128>, KeyFrameId) {
     let mut map = Map::new();

@@ -71,6 +71,11 @@ impl VerifyParams {
         min_spread: 0.25,
         max_rival: 0.5,
     };
+
+    /// The inlier distance (metres) of a place point at depth `z` (metres).
+    pub fn inlier_distance(&self, z: f32) -> f32 {
+        self.inlier_base_m + self.inlier_depth_ratio * z
+    }
 }
 
 /// A descriptor match: the query point, the place's point (each in its camera, metres) and the
@@ -84,7 +89,7 @@ type Match = (Point3<f32>, Point3<f32>, (f32, f32));
 fn triad(src: [Point3<f32>; 3], dst: [Point3<f32>; 3], params: &VerifyParams) -> Option<Pose> {
     let [a, b, c] = src;
     let [a2, b2, c2] = dst;
-    let tol = params.inlier_base_m + params.inlier_depth_ratio * a2.z.max(b2.z).max(c2.z);
+    let tol = params.inlier_distance(a2.z.max(b2.z).max(c2.z));
     let len = |v: Vector3<f32>| ferroslam_fpu::sqrtf(v.norm_squared());
     for (p, q) in [(b - a, b2 - a2), (c - a, c2 - a2), (c - b, c2 - b2)] {
         if (len(p) - len(q)).abs() > tol {
@@ -132,22 +137,10 @@ pub fn verify(
 ) -> Option<Verified> {
     let mut matches: Vec<Match, PLACE_POINTS> = Vec::new();
     for p in points {
-        let mut best = (u32::MAX, None);
-        let mut second = u32::MAX;
-        for q in query.points {
-            let d = q.descriptor.distance(p.descriptor);
-            if d < best.0 {
-                second = best.0;
-                best = (d, Some(q));
-            } else if d < second {
-                second = d;
-            }
-        }
-        let (d, Some(q)) = best else { continue };
-        if d <= params.max_descriptor_distance
-            && second >= d.saturating_add(params.descriptor_margin)
-            && matches.push((q.p_c, p.p_c, q.uv)).is_err()
-        {
+        let Some(q) = matched(query, p, params).and_then(|i| query.points.get(i)) else {
+            continue;
+        };
+        if matches.push((q.p_c, p.p_c, q.uv)).is_err() {
             break;
         }
     }
@@ -158,7 +151,7 @@ pub fn verify(
     let inliers_of = |t: &Pose| -> u64 {
         let mut mask = 0u64;
         for (k, (q, r, _)) in matches.iter().enumerate() {
-            let tol = params.inlier_base_m + params.inlier_depth_ratio * r.z;
+            let tol = params.inlier_distance(r.z);
             if (t * q - r).norm_squared() <= tol * tol {
                 mask |= 1 << k;
             }
@@ -203,6 +196,48 @@ pub fn verify(
         }
     }
     Some(Verified { t_rq, inliers, matches: n })
+}
+
+/// The index of the query point that place point `p` matches (see the module documentation,
+/// step 1): the nearest by descriptor, within `max_descriptor_distance` bits and with the second
+/// nearest `descriptor_margin` bits further.
+fn matched(query: &PlaceQuery<'_>, p: &PlacePoint, params: &VerifyParams) -> Option<usize> {
+    let mut best = (u32::MAX, None);
+    let mut second = u32::MAX;
+    for (i, q) in query.points.iter().enumerate() {
+        let d = q.descriptor.distance(p.descriptor);
+        if d < best.0 {
+            second = best.0;
+            best = (d, Some(i));
+        } else if d < second {
+            second = d;
+        }
+    }
+    let (d, i) = best;
+    (d <= params.max_descriptor_distance && second >= d.saturating_add(params.descriptor_margin))
+        .then_some(i)
+        .flatten()
+}
+
+/// Calls `f(query index, place index)` for each match of [`verify`]'s rule that the motion
+/// `t_rq` (query camera to place camera, as [`Verified::t_rq`]) brings within the inlier
+/// distance: the inliers of a verified place, for a caller that uses its points. Cost: the
+/// place's points times the query's descriptor comparisons.
+pub fn inlier_pairs(
+    query: &PlaceQuery<'_>,
+    points: &[PlacePoint],
+    params: &VerifyParams,
+    t_rq: &Pose,
+    mut f: impl FnMut(usize, usize),
+) {
+    for (pi, p) in points.iter().enumerate() {
+        let Some(qi) = matched(query, p, params) else { continue };
+        let Some(q) = query.points.get(qi) else { continue };
+        let tol = params.inlier_distance(p.p_c.z);
+        if (t_rq * q.p_c - p.p_c).norm_squared() <= tol * tol {
+            f(qi, pi);
+        }
+    }
 }
 
 /// The inlier mask of the best motion drawn from the matches in `allowed` ([`RANSAC_ITERATIONS`]

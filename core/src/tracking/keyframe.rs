@@ -12,7 +12,9 @@ use crate::config::capacity;
 use crate::features::{Descriptor, Feature, HessianParams};
 use crate::frame::RgbdFrame;
 use crate::geometry::{PinholeCamera, Pose};
-use crate::map::{KeyFrameId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation, PlaceKey};
+use crate::map::{
+    KeyFrameId, LandmarkId, MAX_OBSERVATIONS_PER_KEYFRAME, Map, MapError, Observation, PlaceKey,
+};
 use crate::pose::InlierMask;
 use crate::pose::small_image_rotation::{SMALL_H, SMALL_W};
 
@@ -120,7 +122,8 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// landmarks with a descriptor (in its camera) as the query; when it does, moves the map
     /// tracked since the last re-initialization (the keyframes from `track_start` on, the
     /// landmarks they host) and this tracker's state by the correction, and returns the loop
-    /// (the frame's pose is the caller's to move). The caller runs it on a cheap frame after the
+    /// (the frame's pose is the caller's to move). While localizing in a loaded map, the
+    /// landmarks matched to the map's points move halfway to them ([`Places::map_points`]). The caller runs it on a cheap frame after the
     /// keyframe's (the keyframe's own frame is the costliest kind); `size` is the tracking
     /// level's. Cost: one pass over the keyframe's observations, then the place memory's query.
     #[inline(never)]
@@ -134,23 +137,38 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
         let k = map.keyframe(kf)?;
         let t_cw = k.t_wc.inverse();
         let mut points: Vec<QueryPoint, MAX_OBSERVATIONS_PER_KEYFRAME> = Vec::new();
+        // The landmark of each query point.
+        let mut ids: Vec<LandmarkId, MAX_OBSERVATIONS_PER_KEYFRAME> = Vec::new();
         for obs in &k.observations {
             let Some(lm) = map.landmark(obs.landmark) else { continue };
             let Some(descriptor) = lm.descriptor else { continue };
             let _ = points.push(QueryPoint { uv: obs.uv(), p_c: t_cw * lm.p_w, descriptor });
+            let _ = ids.push(obs.landmark);
         }
         let query = PlaceQuery { key: k.place_key, points: &points, size };
-        let closure = places.close_loop(&query, map, kf, self.track_start)?;
-        let c = closure.correction;
-        map.move_world_from(self.track_start, &c);
-        for t in self.local.items_mut() {
-            t.move_world(&c);
+        let closure = places.close_loop(&query, map, kf, self.track_start);
+        if let Some(closure) = &closure {
+            let c = closure.correction;
+            map.move_world_from(self.track_start, &c);
+            for t in self.local.items_mut() {
+                t.move_world(&c);
+            }
+            if let Some((_, t_wk)) = &mut self.keyframing.reference {
+                *t_wk = c * *t_wk;
+            }
+            self.recent.motion.move_world(&c);
         }
-        if let Some((_, t_wk)) = &mut self.keyframing.reference {
-            *t_wk = c * *t_wk;
-        }
-        self.recent.motion.move_world(&c);
-        Some(closure)
+        // Localizing in a loaded map: each landmark the map's place matches moves halfway to
+        // the map's point. The run's position and the map's are two measurements of one point
+        // of about equal accuracy; their mean, at every keyframe that sees the map, keeps the
+        // run on the map without trusting one view's verified pose (docs/decisions.md,
+        // "Localization held on the map by its points").
+        places.map_points(&query, |i, p_w| {
+            if let Some(lm) = ids.get(i).and_then(|&id| map.landmark_mut(id)) {
+                lm.p_w = nalgebra::center(&lm.p_w, &p_w);
+            }
+        });
+        closure
     }
 
     /// Puts the detected features of `frame` with valid depth into `points`, as query points

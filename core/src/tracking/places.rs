@@ -88,6 +88,12 @@ pub trait Places {
         kf: KeyFrameId,
         track_start: u32,
     ) -> Option<LoopClosure>;
+
+    /// After [`Self::close_loop`] with the same `query`, while localizing in a loaded map:
+    /// `f(i, p_w)` for each point `query.points[i]` that the loaded map's place the query
+    /// verified matches (an inlier of the verification), `p_w` that place's point in the map's
+    /// world frame (metres). Nothing when no such place verified, or when not localizing.
+    fn map_points(&mut self, query: &PlaceQuery<'_>, f: impl FnMut(usize, Point3<f32>));
 }
 
 /// No place memory: keyframes leaving the map are forgotten and nothing relocalizes.
@@ -126,4 +132,6 @@ impl Places for NoPlaces {
     ) -> Option<LoopClosure> {
         None
     }
+
+    fn map_points(&mut self, _: &PlaceQuery<'_>, _: impl FnMut(usize, Point3<f32>)) {}
 }

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
+use nalgebra::Point3;
 
 use ferroslam_core::ar::PlaneParams;
 use ferroslam_core::backend::{BackendError, BackendParams, BackendStatus};
@@ -392,6 +393,13 @@ impl Places for RunPlaces {
         match self {
             Self::On(m) => m.close_loop(query, map, kf, track_start),
             Self::Off(n) => n.close_loop(query, map, kf, track_start),
+        }
+    }
+
+    fn map_points(&mut self, query: &PlaceQuery<'_>, f: impl FnMut(usize, Point3<f32>)) {
+        match self {
+            Self::On(m) => m.map_points(query, f),
+            Self::Off(n) => n.map_points(query, f),
         }
     }
 }
