@@ -82,7 +82,8 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "FILE")]
     pub save_map: Option<PathBuf>,
     /// Localization only, in the map of `--load-map`: nothing is added to its store (a map saved
-    /// after is the loaded one).
+    /// after is the loaded one), and the run is held on the map: at each keyframe that sees one of
+    /// its places, the landmarks matched to the place's points move halfway to them.
     #[arg(long, requires = "load_map")]
     pub localize: bool,
     /// Fail (exit status 1, nothing run) when a frame listed in rgb.txt would be skipped: its

@@ -129,7 +129,8 @@ pub struct MapFiles {
     pub load: Option<PathBuf>,
     /// Where to save the map at the end: the remembered keyframes and those of the active map.
     pub save: Option<PathBuf>,
-    /// Localization only: nothing is added to the loaded map's store.
+    /// Localization only: nothing is added to the loaded map's store, and the run is held on it
+    /// by its points.
     pub localize: bool,
 }
 
