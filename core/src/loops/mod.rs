@@ -23,6 +23,9 @@
 //!   when tracking restarted after the place was seen, else (the map was tracked through since)
 //!   once [`HELD_LOOP_CONFIRMATIONS`] loops in a row of [`HELD_MIN_CORRECTION_M`] or
 //!   [`HELD_MIN_CORRECTION_RAD`] agree.
+//! - **Hold a localizing run on the map** (frozen, a loaded map): after a loop query that
+//!   verified a place of the map, [`Places::map_points`] gives the query's inliers with the
+//!   map's points (world frame), which the front end's landmarks move halfway to.
 //!
 //! Cost: a query passes over the index once, decodes [`SHORTLIST`] records and [`CANDIDATES`]
 //! of them again, whatever the store holds; each verification is bounded by [`PLACE_POINTS`] x
