@@ -123,9 +123,10 @@ impl<const W: usize, const H: usize> FrameTracker<W, H> {
     /// tracked since the last re-initialization (the keyframes from `track_start` on, the
     /// landmarks they host) and this tracker's state by the correction, and returns the loop
     /// (the frame's pose is the caller's to move). While localizing in a loaded map, the
-    /// landmarks matched to the map's points move halfway to them ([`Places::map_points`]). The caller runs it on a cheap frame after the
-    /// keyframe's (the keyframe's own frame is the costliest kind); `size` is the tracking
-    /// level's. Cost: one pass over the keyframe's observations, then the place memory's query.
+    /// landmarks matched to the map's points move halfway to them ([`Places::map_points`]). The
+    /// caller runs it on a cheap frame after the keyframe's (the keyframe's own frame is the
+    /// costliest kind); `size` is the tracking level's. Cost: one pass over the keyframe's
+    /// observations, then the place memory's query.
     #[inline(never)]
     pub(super) fn close_loop<const K: usize, const L: usize>(
         &mut self,
