@@ -170,7 +170,10 @@ impl<P: ProfileTypes> Slam<P> {
             steps = self.run_backend_until_idle(cam, work_quota, max_steps)?;
         }
         let mut next = self.oldest_to_settle();
-        while let Some((kf, seq)) = next {
+        // Once the steps are spent, the keyframes left are not handed over: none would be settled.
+        while let Some((kf, seq)) = next
+            && steps < max_steps
+        {
             self.backend.keyframe_added(kf, seq);
             steps += self.run_backend_until_idle(cam, work_quota, max_steps - steps)?;
             next = self.next_keyframe_after(seq);
