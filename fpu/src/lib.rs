@@ -1,4 +1,5 @@
-//! The f32 square root of ferroslam's core, in one place, so the board runs it on its FPU.
+//! Two instructions of the board for ferroslam's core, in one place: the f32 square root on the
+//! FPU, and a dual 16-bit multiply-accumulate ([`smlad`]).
 //!
 //! `ferroslam-core` forbids `unsafe` code and computes its transcendental functions with the
 //! pure-Rust `libm` so the host and the Cortex-M give the same bits. A square root is the one
@@ -9,9 +10,10 @@
 //! (`cargo xtask profile-firmware` put `libm::sqrtf` at 0.48 M instructions on the costliest
 //! frame of the 1000-frame budget replay; 0.05 M with this crate).
 //!
-//! The one `unsafe` block of the core's dependency tree that is ours lives here: five
-//! instructions of inline assembly, on `all(target_arch = "arm", target_abi = "eabihf")` only
-//! (the FPU registers are the hard-float ABI's). Elsewhere [`sqrtf`] is `libm::sqrtf`. Both are
+//! The `unsafe` blocks of the core's dependency tree that are ours live here: five instructions
+//! of inline assembly for the root and one for [`smlad`], on `all(target_arch = "arm",
+//! target_abi = "eabihf")` only (the FPU registers are the hard-float ABI's; every such Cortex-M
+//! has the DSP extension). Elsewhere [`sqrtf`] is `libm::sqrtf`. Both are
 //! correctly rounded for every input (IEEE 754 `squareRoot`, round to nearest even), so the
 //! results are bit-identical; the host tests check libm against an exact integer reference, and
 //! the firmware's budget replay (`cargo xtask budgets`) checks the board's output bits against
@@ -21,6 +23,12 @@
 //! `core`, on Rust 1.95, and the `sqrtf32` intrinsic is unstable. The `sreg` register class
 //! would save the two moves, but it needs the `vfp2` target feature, which is unstable too, so
 //! the value goes through a core register and `s0` is saved and restored around it.
+//!
+//! [`smlad`], the Cortex-M4's dual 16-bit multiply-accumulate, does two products and their sum
+//! in one instruction in the core's integer template search, the matching's innermost loop
+//! (docs/decisions.md, "Batched search products"). It is exact integer arithmetic, so its plain
+//! Rust form elsewhere gives the same bits. Assembly again, as `core::arch::arm::__smlad` is
+//! unstable on Rust 1.95.
 #![no_std]
 #![deny(missing_docs)]
 
@@ -63,9 +71,60 @@ pub fn sqrtf(x: f32) -> f32 {
     }
 }
 
+/// `acc + lo(a) * lo(b) + hi(a) * hi(b)`, wrapping modulo 2^32, where `lo` and `hi` are the
+/// signed 16-bit halves of a word (bits 0-15 and 16-31): two multiply-accumulates.
+///
+/// On hard-float ARM it is one `SMLAD` (every Cortex-M4F and M7F has the DSP extension); the
+/// same sum in plain integers elsewhere. Both wrap the same way, so the results are the same
+/// bits; `SMLAD` also sets the Q flag on a wrap, which nothing reads.
+///
+/// ```
+/// let pair = |lo: i16, hi: i16| u32::from(lo as u16) | (u32::from(hi as u16) << 16);
+/// assert_eq!(ferroslam_fpu::smlad(pair(3, -4), pair(5, 6), 100), 100 + 15 - 24);
+/// ```
+#[inline(always)]
+#[must_use]
+pub fn smlad(a: u32, b: u32, acc: i32) -> i32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let r: i32;
+        // SAFETY: one instruction on the three named input registers and the output register;
+        // it reads and writes no memory and no stack. It may set the Q flag (sticky saturation),
+        // which is why `preserves_flags` is not claimed.
+        unsafe {
+            core::arch::asm!(
+                "smlad {r}, {a}, {b}, {acc}",
+                a = in(reg) a,
+                b = in(reg) b,
+                acc = in(reg) acc,
+                r = lateout(reg) r,
+                options(pure, nomem, nostack),
+            );
+        }
+        r
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        let lo = |w: u32| i32::from(w as u16 as i16);
+        let hi = |w: u32| i32::from((w >> 16) as u16 as i16);
+        acc.wrapping_add(lo(a) * lo(b)).wrapping_add(hi(a) * hi(b))
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::sqrtf;
+    use super::{smlad, sqrtf};
+
+    #[test]
+    fn smlad_adds_both_halves_products_and_wraps() {
+        let pair = |lo: i16, hi: i16| u32::from(lo as u16) | (u32::from(hi as u16) << 16);
+        assert_eq!(smlad(pair(255, 0), pair(-128, 127), 7), 7 - 255 * 128);
+        assert_eq!(smlad(pair(-1, -1), pair(-1, -1), 0), 2);
+        assert_eq!(smlad(pair(0, 255), pair(0, 127), -1), 255 * 127 - 1);
+        // (-2^15)^2 twice is 2^31: it wraps, as SMLAD does.
+        assert_eq!(smlad(pair(i16::MIN, i16::MIN), pair(i16::MIN, i16::MIN), 0), i32::MIN);
+        assert_eq!(smlad(0, 0, i32::MAX), i32::MAX);
+    }
 
     /// The correctly rounded square root of a positive finite `x`, from integers only: the
     /// reference the FPU's `VSQRT.F32` and libm both meet.

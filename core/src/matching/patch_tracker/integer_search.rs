@@ -2,6 +2,8 @@
 //! integers, candidates' block sums from shared column sums, their ZNCC from exact integer sums,
 //! and the ambiguity test over the coarse scores.
 
+use ferroslam_fpu::smlad;
+
 use super::{Template, TrackParams};
 use crate::image::GrayView;
 use crate::matching::MatchError;
@@ -16,6 +18,9 @@ const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_COARSE_STEPS + 1;
 pub(super) struct Quantized<const N: usize> {
     /// Rounded values (gray level minus 128, so in -128..=127).
     values: [[i16; N]; N],
+    /// For [`Self::products`]: each row's columns `(4g, 4g + 2)` and `(4g + 1, 4g + 3)` of
+    /// group `g` as the 16-bit halves of a word (low half first), groups `0..N / 4`.
+    pairs: [[u32; 2 * MAX_GROUPS]; N],
     /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
     sum: i64,
     var_n2: i64,
@@ -25,8 +30,13 @@ pub(super) struct Quantized<const N: usize> {
 
 impl<const N: usize> Quantized<N> {
     /// All zero, to be filled by [`Self::fill`] (which writes every field).
-    pub(super) const EMPTY: Self =
-        Self { values: [[0; N]; N], sum: 0, var_n2: 0, root_var_n2: 0.0 };
+    pub(super) const EMPTY: Self = Self {
+        values: [[0; N]; N],
+        pairs: [[0; 2 * MAX_GROUPS]; N],
+        sum: 0,
+        var_n2: 0,
+        root_var_n2: 0.0,
+    };
 
     /// Fills `self` with the rounded grid of `t` and its sums.
     fn fill<const S: usize>(&mut self, t: &Template<N, S>) {
@@ -41,61 +51,81 @@ impl<const N: usize> Quantized<N> {
                 qss += i64::from(r) * i64::from(r);
             }
         }
+        self.pack_pairs();
         // At most 169 * 169 * 128^2: far inside i64.
         let var_n2 = (N * N) as i64 * qss - qs * qs;
         (self.sum, self.var_n2) = (qs, var_n2);
         self.root_var_n2 = ferroslam_fpu::sqrtf(exact_f32(var_n2));
     }
 
-    /// `sum s q` over the `N x N` block of target pixels `s` whose top-left pixel is `(x0, y0)`
-    /// (inside the image: checked by the caller); `None` when a row leaves the buffer.
-    fn product(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<i32> {
-        // |sum| <= 169 * 255 * 128: exact in i32.
-        let mut st = 0i32;
-        for (j, q_row) in self.values.iter().enumerate() {
-            let start = (y0 + j) * stride + x0;
-            let row: &[u8; N] = data.get(start..start + N)?.try_into().ok()?;
-            for (&s, &v) in row.iter().zip(q_row) {
-                st += i32::from(s) * i32::from(v);
+    /// Sets [`Self::pairs`] from the values.
+    fn pack_pairs(&mut self) {
+        for (pairs, q_row) in self.pairs.iter_mut().zip(&self.values) {
+            // Columns past the row are 0 (only in groups that `products` does not read).
+            let q = |c: usize| q_row.get(c).map_or(0, |&v| u32::from(v as u16));
+            for (g, pair) in pairs.chunks_exact_mut(2).enumerate() {
+                let c = 4 * g;
+                if let [even, odd] = pair {
+                    (*even, *odd) = (q(c) | (q(c + 2) << 16), q(c + 1) | (q(c + 3) << 16));
+                }
             }
+        }
+    }
+
+    /// `sum s q` over the `N x N` block of target pixels `s` whose top-left pixel is `(x0, y0)`
+    /// (inside the image: checked by the caller); `None` when a row leaves the buffer. Exact in
+    /// i32 (`|sum| <= 169 * 255 * 128`).
+    fn product(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<i32> {
+        let mut st = 0i32;
+        for (j, (q_row, pairs)) in self.values.iter().zip(&self.pairs).enumerate() {
+            let start = (y0 + j) * stride + x0;
+            st = row_product(q_row, pairs, data.get(start..start + N)?, st)?;
         }
         Some(st)
     }
 
-    /// [`Self::product`] of the [`ROW_BATCH`] (3) blocks whose top-left pixels are `(x0 + k,
-    /// y0)`, `k in 0..3`, or `None` when a row leaves the buffer or the template is too large
-    /// for the packed sums (`N > 11`). The same exact integer sums as three calls, in fewer
-    /// instructions: each pixel of a row is read once for all three blocks (`N + 2` pixels
-    /// instead of `3N`), and the sums of blocks 0 and 1 share one 64-bit multiply-accumulate
-    /// (`smlal` on the Cortex-M4): pixel `p` meets template column `p` of block 0 and `p - 1` of
-    /// block 1, so `s * (q[p] + q[p - 1] 2^23)` adds to both at once, block 0's sum in the low
-    /// 23 bits (its magnitude is at most `121 * 255 * 128 < 2^22` for `N <= 11`) and block 1's
-    /// above them. On the Cortex-M4 at `N = 9` a template row of the three blocks compiles to
-    /// about 88 instructions against about 114 for three single products (docs/decisions.md,
-    /// "Batched search products").
-    fn products(&self, data: &[u8], stride: usize, (x0, y0): (usize, usize)) -> Option<[i32; 3]> {
-        if N * N * 255 * 128 >= 1 << (LANE_SHIFT - 1) {
-            return None;
-        }
-        let (mut packed, mut third) = (0i64, 0i32);
-        for (j, q_row) in self.values.iter().enumerate() {
+    /// [`Self::product`] of the `B` blocks whose top-left pixels are `(x0 + k, y0)`, `k in
+    /// 0..B`, or `None` when a row leaves the buffer. The same exact integer sums as `B` calls,
+    /// in fewer instructions: each row is found and checked once for all the blocks, and the
+    /// template's pairs are loaded once (docs/decisions.md, "Batched search products").
+    fn products<const B: usize>(
+        &self,
+        data: &[u8],
+        stride: usize,
+        (x0, y0): (usize, usize),
+    ) -> Option<[i32; B]> {
+        let mut sums = [0i32; B];
+        for (j, (q_row, pairs)) in self.values.iter().zip(&self.pairs).enumerate() {
             let start = (y0 + j) * stride + x0;
-            let row = data.get(start..start + N + 2)?;
-            // Template column `i` of this row, 0 outside it (`p - 1` and `p - 2` wrap below 0).
-            let q = |i: usize| q_row.get(i).map_or(0, |&v| i32::from(v));
-            for (p, &s) in row.iter().enumerate() {
-                let s = i32::from(s);
-                // |q| <= 128: the shifted value is within +-2^30.
-                let pair = q(p) + (q(p.wrapping_sub(1)) << LANE_SHIFT);
-                packed += i64::from(s) * i64::from(pair);
-                third += s * q(p.wrapping_sub(2));
+            let row = data.get(start..start + N + B - 1)?;
+            for (b, sum) in sums.iter_mut().enumerate() {
+                *sum = row_product(q_row, pairs, row.get(b..)?, *sum)?;
             }
         }
-        // Block 0's sum is the low `LANE_SHIFT` bits, sign-extended (truncating to i32 keeps
-        // them); block 1's is the rest, exactly.
-        let first = ((packed as i32) << (32 - LANE_SHIFT)) >> (32 - LANE_SHIFT);
-        let second = (packed - i64::from(first)) >> LANE_SHIFT;
-        Some([first, i32::try_from(second).ok()?, third])
+        Some(sums)
+    }
+
+    /// The products of the widest batch of adjacent blocks from `(x0, y0)` that `left` blocks
+    /// hold ([`BATCHES`]), and its width; `None` when none fits or a row leaves the buffer.
+    fn batch(
+        &self,
+        data: &[u8],
+        stride: usize,
+        at: (usize, usize),
+        left: usize,
+    ) -> Option<([i32; WIDE_BATCH], usize)> {
+        if left >= WIDE_BATCH {
+            return Some((self.products::<WIDE_BATCH>(data, stride, at)?, WIDE_BATCH));
+        }
+        if left < ROW_BATCH {
+            return None;
+        }
+        let three = self.products::<ROW_BATCH>(data, stride, at)?;
+        let mut out = [0; WIDE_BATCH];
+        for (o, v) in out.iter_mut().zip(three) {
+            *o = v;
+        }
+        Some((out, ROW_BATCH))
     }
 
     /// ZNCC of the block whose product with the template is `st` ([`Self::product`]) and whose
@@ -136,12 +166,42 @@ fn wide_f32(v: i64) -> f32 {
     v as f32
 }
 
+/// `acc + sum s q` over one row: template row `q_row` (and its [`Quantized::pairs`]) against the
+/// first `N` of `pixels` (`None` when there are fewer). Pixels `k` and `k + 2` are the halves of
+/// one word (`w & 0x00FF_00FF` of a 4-byte read), so a group of four template columns takes one
+/// word of pixels and two dual multiply-accumulates ([`smlad`], one `SMLAD` each on the
+/// Cortex-M4); columns past the last whole group are single products.
+#[inline(always)]
+fn row_product<const N: usize>(
+    q_row: &[i16; N],
+    pairs: &[u32],
+    pixels: &[u8],
+    acc: i32,
+) -> Option<i32> {
+    let mut st = acc;
+    for (g, q) in pairs.chunks_exact(2).take(N / 4).enumerate() {
+        let w = u32::from_le_bytes(pixels.get(4 * g..4 * g + 4)?.try_into().ok()?);
+        let (even, odd) = (w & LOW_BYTES, (w >> 8) & LOW_BYTES);
+        st = smlad(odd, q.get(1).copied()?, smlad(even, q.first().copied()?, st));
+    }
+    for c in N / 4 * 4..N {
+        st += i32::from(*pixels.get(c)?) * i32::from(*q_row.get(c)?);
+    }
+    Some(st)
+}
+
 /// Adjacent candidates whose products with the template [`search`] computes together
-/// ([`Quantized::products`]).
+/// ([`Quantized::batch`]): a row of the guides' 7 x 7 candidates at once, of the final stage's
+/// 3 x 3 likewise.
+const WIDE_BATCH: usize = 7;
 const ROW_BATCH: usize = 3;
 
-/// Bit where the second block's sum starts in [`Quantized::products`]' packed sum.
-const LANE_SHIFT: u32 = 23;
+/// The even bytes of a word, each in its 16-bit half: pixels `k` and `k + 2` of a 4-byte read
+/// at `k`, as [`smlad`] takes them (one `UXTB16` on the Cortex-M4).
+const LOW_BYTES: u32 = 0x00FF_00FF;
+
+/// Groups of four template columns in the widest template row ([`Quantized::pairs`]).
+const MAX_GROUPS: usize = (2 * MAX_TRACK_HALF_SIZE + 1) / 4;
 
 /// Widest search window of [`track_patch`](super::track_patch), pixels: `2R + 2h + 1` at the
 /// largest `R` and `h`.
@@ -298,16 +358,16 @@ pub(super) fn search<const N: usize, const S: usize>(
         let iy = coarse(ky);
         let mut kx = 0;
         while kx < csize {
-            // Adjacent candidates (step 1) share their pixels: their products come in batches
-            // of [`ROW_BATCH`] ([`Quantized::products`]). Scores, and so the order of ties, are
-            // those of single products.
-            let batch = (step == 1 && kx + ROW_BATCH <= csize)
-                .then(|| q.products(data, stride, (x0 + coarse(kx), y0 + iy)))
+            // Adjacent candidates (step 1) share their rows: their products come in batches
+            // ([`Quantized::batch`]). Scores, and so the order of ties, are those of single
+            // products.
+            let batch = (step == 1)
+                .then(|| q.batch(data, stride, (x0 + coarse(kx), y0 + iy), csize - kx))
                 .flatten();
-            let n = batch.map_or(1, |_| ROW_BATCH);
+            let n = batch.map_or(1, |(_, n)| n);
             for k in 0..n {
                 let ix = coarse(kx + k);
-                let s = score(ix, iy, batch.and_then(|b| b.get(k).copied()));
+                let s = score(ix, iy, batch.and_then(|(b, _)| b.get(k).copied()));
                 if let Some(slot) = scores.as_mut().and_then(|g| g.get_mut(ky * csize + kx + k)) {
                     *slot = s;
                 }
@@ -383,8 +443,9 @@ mod tests {
     use super::*;
     use crate::matching::patch_tracker::test_images::noise_image;
 
-    /// The batched, packed products equal one product per block, at the extremes of the
-    /// template and pixel ranges too; too large a template is left to the single products.
+    /// The single and the batched products (3 and 7 blocks) equal the products computed pixel
+    /// by pixel, at the extremes of the template and pixel ranges too, for template sizes 3 to
+    /// 13; a batch is the widest that what is left of a row holds.
     #[test]
     fn batched_products_equal_single_ones() {
         fn check<const N: usize>(img: &[u8], w: usize, fill: impl Fn(usize) -> i16) {
@@ -392,14 +453,35 @@ mod tests {
             for (k, v) in q.values.as_flattened_mut().iter_mut().enumerate() {
                 *v = fill(k);
             }
-            for (x0, y0) in [(0usize, 0usize), (5, 3), (w - N - 2, 40 - N)] {
-                let batch = q.products(img, w, (x0, y0));
-                let single: [Option<i32>; 3] =
+            q.pack_pairs();
+            for (x0, y0) in [(0usize, 0usize), (5, 3), (w - N - 6, 40 - N)] {
+                // Pixel by pixel, as the definition reads.
+                let reference: [Option<i32>; WIDE_BATCH] = core::array::from_fn(|k| {
+                    let mut st = 0i32;
+                    for (j, q_row) in q.values.iter().enumerate() {
+                        for (c, &v) in q_row.iter().enumerate() {
+                            st += i32::from(img[(y0 + j) * w + x0 + k + c]) * i32::from(v);
+                        }
+                    }
+                    Some(st)
+                });
+                let single: [Option<i32>; WIDE_BATCH] =
                     core::array::from_fn(|k| q.product(img, w, (x0 + k, y0)));
-                if N <= 11 {
-                    assert_eq!(batch.map(|b| b.map(Some)), Some(single), "{N} at {x0}, {y0}");
-                } else {
-                    assert_eq!(batch, None);
+                assert_eq!(single, reference, "{N} at {x0}, {y0}");
+                let wide = q.products::<WIDE_BATCH>(img, w, (x0, y0));
+                assert_eq!(wide.map(|b| b.map(Some)), Some(single), "{N} at {x0}, {y0}");
+                let three = q.products::<ROW_BATCH>(img, w, (x0, y0));
+                assert_eq!(three.map(|b| b.map(Some)).as_ref().map(|b| &b[..]), Some(&single[..3]));
+                // The widest batch that fits what is left of a row, as `search` asks.
+                for (left, n) in [(2, None), (3, Some(3)), (6, Some(3)), (7, Some(7)), (9, Some(7))]
+                {
+                    let batch = q.batch(img, w, (x0, y0), left);
+                    assert_eq!(batch.map(|(_, n)| n), n, "{left} left");
+                    if let Some((b, n)) = batch {
+                        for (k, (v, want)) in b.iter().zip(&single).take(n).enumerate() {
+                            assert_eq!(Some(*v), *want, "block {k} of {n}");
+                        }
+                    }
                 }
             }
         }
@@ -413,6 +495,10 @@ mod tests {
             check::<11>(img, w, |k| if k % 2 == 0 { -128 } else { 127 });
             check::<11>(img, w, |_| -128);
             check::<13>(img, w, |_| 1);
+            check::<13>(img, w, |k| if k % 3 == 0 { -128 } else { 127 });
+            check::<5>(img, w, |k| (k as i16 * 53) % 256 - 128);
+            check::<7>(img, w, |_| -128);
+            check::<3>(img, w, |k| 127 - k as i16);
         }
     }
 
