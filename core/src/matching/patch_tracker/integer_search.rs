@@ -228,16 +228,20 @@ pub(super) struct ColumnSums<const N: usize> {
     /// Window row of the candidates these sums are for; `None` before the first row or when a
     /// row left the buffer (impossible after the caller's check; its candidates then score -1).
     row: Option<usize>,
+    /// The column and the sums of the last block of `row`, from which the next column's block
+    /// slides (one column out, one in) instead of summing its `N` columns.
+    last: Option<(usize, BlockSums)>,
 }
 
 impl<const N: usize> ColumnSums<N> {
     /// No candidate row yet.
     pub(super) const EMPTY: Self =
-        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None };
+        Self { sum: [0; MAX_WINDOW], sum_sq: [0; MAX_WINDOW], row: None, last: None };
 
     /// Forgets the candidate row: the next [`Self::block`] computes its sums from scratch.
     fn restart(&mut self) {
         self.row = None;
+        self.last = None;
     }
 
     /// The block sums of the candidate at window column `ix` of the candidate row whose top
@@ -255,6 +259,7 @@ impl<const N: usize> ColumnSums<N> {
         width: usize,
     ) -> Option<BlockSums> {
         if self.row != Some(iy) {
+            self.last = None;
             let previous = self.row.take();
             let width = width.min(MAX_WINDOW);
             let (sum, sum_sq) = (&mut self.sum[..width], &mut self.sum_sq[..width]);
@@ -296,9 +301,23 @@ impl<const N: usize> ColumnSums<N> {
             }
             self.row = Some(iy);
         }
-        let sum = self.sum.get(ix..ix + N)?.iter().sum();
-        let sum_sq = self.sum_sq.get(ix..ix + N)?.iter().sum();
-        Some(BlockSums { sum, sum_sq })
+        let block = match self.last {
+            // The next column (a batch's candidates come in order): exact integers, so the same
+            // sums as from scratch.
+            Some((last, b)) if last + 1 == ix => {
+                let (out, new) = (ix - 1, ix + N - 1);
+                BlockSums {
+                    sum: b.sum - self.sum.get(out)? + self.sum.get(new)?,
+                    sum_sq: b.sum_sq - self.sum_sq.get(out)? + self.sum_sq.get(new)?,
+                }
+            }
+            _ => BlockSums {
+                sum: self.sum.get(ix..ix + N)?.iter().sum(),
+                sum_sq: self.sum_sq.get(ix..ix + N)?.iter().sum(),
+            },
+        };
+        self.last = Some((ix, block));
+        Some(block)
     }
 }
 
@@ -502,8 +521,9 @@ mod tests {
         }
     }
 
-    /// Column sums slid from any earlier candidate row equal the sums computed from scratch, and
-    /// those do not depend on what the sums held before.
+    /// Column sums slid from any earlier candidate row, and block sums slid from the column
+    /// before, equal the sums computed from scratch, and those do not depend on what the sums
+    /// held before.
     #[test]
     fn slid_column_sums_equal_fresh_ones() {
         const N: usize = 9;
@@ -516,10 +536,15 @@ mod tests {
         assert!(y0 + visits.iter().max().copied().unwrap_or(0) + N <= h);
         let mut slid = ColumnSums::<N>::EMPTY;
         for &iy in &visits {
-            // A value left over from another search: no row, sums that are not zero.
-            let mut fresh =
-                ColumnSums::<N> { sum: [12_345; MAX_WINDOW], sum_sq: [-7; MAX_WINDOW], row: None };
-            for ix in [0usize, 5, width - N] {
+            // Runs of next columns (the block sums slide), jumps, and a column again.
+            for ix in [0usize, 1, 2, 5, 6, width - N - 1, width - N, 3, 3] {
+                // A value left over from another search: no row, sums that are not zero.
+                let mut fresh = ColumnSums::<N> {
+                    sum: [12_345; MAX_WINDOW],
+                    sum_sq: [-7; MAX_WINDOW],
+                    row: None,
+                    last: None,
+                };
                 let a =
                     slid.block(&img, w, (x0, y0 + iy), (ix, iy), width).map(|b| (b.sum, b.sum_sq));
                 let b =
