@@ -105,8 +105,9 @@ impl<const N: usize> Quantized<N> {
         Some(sums)
     }
 
-    /// The products of the widest batch of adjacent blocks from `(x0, y0)` that `left` blocks
-    /// hold ([`BATCHES`]), and its width; `None` when none fits or a row leaves the buffer.
+    /// The products of the widest batch of adjacent blocks from `at` that `left` blocks hold
+    /// ([`WIDE_BATCH`] or [`ROW_BATCH`]), and its width; `None` when none fits or a row leaves
+    /// the buffer.
     fn batch(
         &self,
         data: &[u8],
@@ -191,9 +192,11 @@ fn row_product<const N: usize>(
 }
 
 /// Adjacent candidates whose products with the template [`search`] computes together
-/// ([`Quantized::batch`]): a row of the guides' 7 x 7 candidates at once, of the final stage's
-/// 3 x 3 likewise.
+/// ([`Quantized::batch`]): a row of the guides' 7 x 7 candidates at once.
 const WIDE_BATCH: usize = 7;
+
+/// The narrower batch, where fewer than [`WIDE_BATCH`] candidates are left in a row: a row of
+/// the final stage's 3 x 3 candidates at once.
 const ROW_BATCH: usize = 3;
 
 /// The even bytes of a word, each in its 16-bit half: pixels `k` and `k + 2` of a 4-byte read
