@@ -36,9 +36,9 @@
 //! bilinear samples for the template; for the column sums, `(2h + 1)(2R + 2h + 1)` pixels for the
 //! first row of candidates and `2s (2R + 2h + 1)` for each coarse row after it (rows `s` apart;
 //! from scratch when `s >= 2h + 1`), and per candidate `n` integer multiply-adds
-//! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates; at `s = 1` three adjacent candidates share
-//! their pixel reads, and every product takes two pixels a multiply-accumulate: `Quantized::products`
-//! in `integer_search.rs`); then per Lucas-Kanade step `n` shared-weight samples and ~10 flops
+//! (`(2 floor(R/s) + 1)^2 + (2s - 1)^2` candidates; at `s = 1` up to seven adjacent candidates
+//! share their row reads and slide their block sums, and every product takes two pixels a
+//! multiply-accumulate: `Quantized::batch` in `integer_search.rs`); then per Lucas-Kanade step `n` shared-weight samples and ~10 flops
 //! each. About 30 k host instructions per call at [`TrackParams::FINE`] (`h = 4`, `R = 1`, `s =
 //! 1`: 9 candidates; the template warp is a quarter of it, the Lucas-Kanade steps, typically 2-4
 //! plus the final score, another third) and 58 k at [`TrackParams::GUIDE`] (`R = 3`: 49

@@ -18,7 +18,7 @@ const MAX_SCORE_SIDE: usize = 2 * MAX_TRACK_COARSE_STEPS + 1;
 pub(super) struct Quantized<const N: usize> {
     /// Rounded values (gray level minus 128, so in -128..=127).
     values: [[i16; N]; N],
-    /// For [`Self::products`]: each row's columns `(4g, 4g + 2)` and `(4g + 1, 4g + 3)` of
+    /// For the products ([`row_product`]): each row's columns `(4g, 4g + 2)` and `(4g + 1, 4g + 3)` of
     /// group `g` as the 16-bit halves of a word (low half first), groups `0..N / 4`.
     pairs: [[u32; 2 * MAX_GROUPS]; N],
     /// `sum q` and `n sum q^2 - (sum q)^2` with `n = N^2` (exact in i64).
@@ -219,8 +219,8 @@ struct BlockSums {
 
 /// The target's column sums over the `N` rows of one row of candidates: for every window column,
 /// the sum and the sum of squares of the `N` pixels below it. A candidate's block sums are then
-/// `N` column sums instead of `N^2` pixels, so its ZNCC reads the pixels only for the product with
-/// the template.
+/// `N` column sums instead of `N^2` pixels (two, slid from the candidate before it in its row), so
+/// its ZNCC reads the pixels only for the product with the template.
 ///
 /// Only the first `width` columns of a search are ever written or read, and `row` says whether
 /// they hold a candidate row's sums, so one value serves search after search (see
